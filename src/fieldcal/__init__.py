@@ -1,0 +1,34 @@
+"""fieldcal: joint maximum-likelihood calibration of an accelerometer and a magnetometer.
+
+>>> import fieldcal
+>>> session = fieldcal.simulate("paper", seed=1)
+>>> cal = fieldcal.calibrate(session.accel, session.mag)          # doctest: +SKIP
+
+Conventions are stated once in ``docs/conventions.md`` and in :mod:`fieldcal.model`.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from . import metrics
+from .api import calibrate
+from .model import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
+from .poses import PoseStats, SensorStats, stats_from_means, summarize
+from .simulate import Session, simulate
+
+__all__ = [
+    "Calibration",
+    "Diagnostics",
+    "ParameterCovariance",
+    "PoseStats",
+    "SensorCalibration",
+    "SensorStats",
+    "Session",
+    "__version__",
+    "calibrate",
+    "metrics",
+    "simulate",
+    "stats_from_means",
+    "summarize",
+]

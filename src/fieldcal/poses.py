@@ -1,0 +1,191 @@
+"""Pose statistics of Sec. 3: per-pose means (Eq. 5), counts Δ_i and pooled covariance (Eq. 7).
+
+Also the input checks every method shares: what a "sequence of N pose arrays" may be and the
+one-line errors for what it may not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .model import _ArrayDataclass
+
+__all__ = ["PoseStats", "SensorStats", "as_pose_list", "stats_from_means", "summarize"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class SensorStats(_ArrayDataclass):
+    """One sensor's summary of N static poses.
+
+    Attributes
+    ----------
+    means : (N, 3) array
+        ``μ̂_s[i]``, Eq. 5.
+    counts : (N,) int array
+        ``Δ_s[i]``, samples per pose.
+    cov : (3, 3) array or None
+        ``Σ̂_s``, Eq. 7 (pooled within-pose scatter divided by ``ΣΔ − N``, the generalised
+        Bessel correction); ``None`` when no pose has more than one sample.
+    dof : int
+        ``ΣΔ − N``, the degrees of freedom of ``cov`` (a Wishart variate).
+    """
+
+    means: Array
+    counts: NDArray[np.int64]
+    cov: Array | None
+    dof: int
+
+    @property
+    def n_poses(self) -> int:
+        return int(self.means.shape[0])
+
+    def subset(self, index: ArrayLike) -> SensorStats:
+        """Statistics of a subset of poses, keeping the pooled covariance as it is."""
+        index = np.asarray(index)
+        return SensorStats(self.means[index], self.counts[index], self.cov, self.dof)
+
+
+@dataclass(frozen=True, eq=False)
+class PoseStats(_ArrayDataclass):
+    """Both sensors' summaries; either may be ``None`` for single-sensor calibration."""
+
+    accel: SensorStats | None
+    mag: SensorStats | None
+
+    @property
+    def n_poses(self) -> int:
+        sensor = self.accel if self.accel is not None else self.mag
+        return 0 if sensor is None else sensor.n_poses
+
+    def subset(self, index: ArrayLike) -> PoseStats:
+        return PoseStats(
+            None if self.accel is None else self.accel.subset(index),
+            None if self.mag is None else self.mag.subset(index),
+        )
+
+
+def as_pose_list(samples: object, name: str) -> list[Array]:
+    """Validate one sensor's input: N arrays of shape (n_i, 3), or an (N, n, 3) array.
+
+    Raises ``ValueError`` with a one-line message naming the problem and the fix.
+    """
+    if isinstance(samples, np.ndarray) and samples.ndim == 3:
+        poses = list(samples)
+    elif isinstance(samples, np.ndarray) and samples.ndim == 2:
+        raise ValueError(
+            f"{name}: got one ({samples.shape[0]}, {samples.shape[1]}) array; pass a list with one "
+            "(n_i, 3) array per static pose (or use method='ellipsoid' for continuous samples)"
+        )
+    elif isinstance(samples, Sequence) and not isinstance(samples, (str, bytes)):
+        poses = list(samples)
+    else:
+        raise ValueError(
+            f"{name}: expected a sequence of per-pose (n_i, 3) arrays, got {type(samples).__name__}"
+        )
+    if not poses:
+        raise ValueError(f"{name}: no poses given; pass one (n_i, 3) array per static pose")
+    out = []
+    for i, pose in enumerate(poses):
+        try:
+            array = np.asarray(pose, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: pose {i} is not numeric") from None
+        if array.ndim == 1 and array.shape == (3,):
+            array = array[None, :]
+        if array.ndim != 2 or array.shape[1] != 3:
+            raise ValueError(
+                f"{name}: pose {i} has shape {array.shape}; each pose must be an (n_i, 3) array "
+                "of x, y, z readings"
+            )
+        if array.shape[0] == 0:
+            raise ValueError(f"{name}: pose {i} has no samples; drop it or record it again")
+        out.append(array)
+    bad = [i for i, a in enumerate(out) if not np.all(np.isfinite(a))]
+    if bad:
+        shown = ", ".join(map(str, bad[:5])) + (" ..." if len(bad) > 5 else "")
+        raise ValueError(
+            f"{name}: NaN or inf readings in {len(bad)} pose(s) ({shown}); "
+            "remove those samples before calibrating"
+        )
+    return out
+
+
+def _sensor_stats(poses: list[Array]) -> SensorStats:
+    counts = np.array([len(p) for p in poses], dtype=np.int64)
+    stacked = np.concatenate(poses, axis=0)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    means = np.add.reduceat(stacked, starts, axis=0) / counts[:, None]  # Eq. 5
+    dof = int(counts.sum() - len(counts))
+    if dof <= 0:
+        return SensorStats(means, counts, None, dof)
+    centred = stacked - np.repeat(means, counts, axis=0)
+    cov = centred.T @ centred / dof  # Eq. 7
+    return SensorStats(means, counts, 0.5 * (cov + cov.T), dof)
+
+
+def summarize(accel: object, mag: object = None) -> PoseStats:
+    """Pose statistics of Sec. 3 for one or both sensors.
+
+    Parameters
+    ----------
+    accel, mag
+        Each a sequence of N arrays of shape (n_i, 3): the raw samples of pose i (same N and
+        pose order for both sensors; n_i may differ between poses and sensors). Either may be
+        ``None`` (single-sensor calibration), not both.
+
+    Returns
+    -------
+    PoseStats
+        Means (Eq. 5), counts ``Δ_i`` and the pooled covariance with the generalised Bessel
+        correction (Eq. 7), per sensor. Vectorised: the poses are concatenated once and reduced
+        with ``np.add.reduceat``.
+    """
+    if accel is None and mag is None:
+        raise ValueError("no data: pass accelerometer poses, magnetometer poses, or both")
+    a = None if accel is None else as_pose_list(accel, "accel")
+    m = None if mag is None else as_pose_list(mag, "mag")
+    if a is not None and m is not None and len(a) != len(m):
+        raise ValueError(
+            f"accel has {len(a)} poses but mag has {len(m)}; pass the same poses, in the same "
+            "order, for both sensors"
+        )
+    return PoseStats(
+        None if a is None else _sensor_stats(a), None if m is None else _sensor_stats(m)
+    )
+
+
+def stats_from_means(
+    accel_means: ArrayLike | None,
+    mag_means: ArrayLike | None = None,
+    counts: ArrayLike | None = None,
+    accel_cov: ArrayLike | None = None,
+    mag_cov: ArrayLike | None = None,
+) -> PoseStats:
+    """Pose statistics from already-averaged readings (one row per pose), e.g. a logger that
+    stores one averaged shot per pose. ``counts`` defaults to 1 per pose; a covariance, when
+    known, is that of one raw sample."""
+
+    def one(means: ArrayLike | None, cov: ArrayLike | None, name: str) -> SensorStats | None:
+        if means is None:
+            return None
+        m = as_pose_list([np.asarray(means, dtype=float)], name)[0]
+        n = np.ones(len(m), dtype=np.int64) if counts is None else np.asarray(counts, np.int64)
+        if n.shape != (len(m),):
+            raise ValueError(f"{name}: counts has {n.shape[0]} entries for {len(m)} poses")
+        c = None if cov is None else np.asarray(cov, dtype=float)
+        return SensorStats(m, n, c, int(n.sum() - len(n)))
+
+    stats = PoseStats(one(accel_means, accel_cov, "accel"), one(mag_means, mag_cov, "mag"))
+    if stats.accel is not None and stats.mag is not None:
+        if stats.accel.n_poses != stats.mag.n_poses:
+            raise ValueError(
+                f"accel has {stats.accel.n_poses} poses but mag has {stats.mag.n_poses}; "
+                "pass the same poses for both sensors"
+            )
+    return stats

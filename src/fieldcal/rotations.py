@@ -1,0 +1,126 @@
+"""The few SO(3) tools fieldcal needs beyond :class:`scipy.spatial.transform.Rotation`.
+
+Every function is vectorised over a leading batch axis. Rotation matrices act on column vectors:
+``v_sensor = R @ v_world`` (see ``docs/conventions.md``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "exp_so3",
+    "hat",
+    "log_so3",
+    "project_to_so3",
+    "random_rotations",
+    "rotation_angle_deg",
+    "wahba",
+]
+
+
+def random_rotations(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """Draw ``n`` rotation matrices uniformly on SO(3) (Kuffner 2004, Algorithm 2).
+
+    Kuffner's "effective sampling" draws a unit quaternion from three uniforms (Shoemake's
+    subgroup algorithm): ``s ~ U[0, 1]``, ``σ1 = √(1 − s)``, ``σ2 = √s``, ``θ1, θ2 ~ U[0, 2π)``,
+    ``q = (w, x, y, z) = (cos θ2 σ2, sin θ1 σ1, cos θ1 σ1, sin θ2 σ2)``.
+    """
+    s = rng.uniform(0.0, 1.0, n)
+    theta1 = rng.uniform(0.0, 2.0 * np.pi, n)
+    theta2 = rng.uniform(0.0, 2.0 * np.pi, n)
+    sigma1, sigma2 = np.sqrt(1.0 - s), np.sqrt(s)
+    w, x = np.cos(theta2) * sigma2, np.sin(theta1) * sigma1
+    y, z = np.cos(theta1) * sigma1, np.sin(theta2) * sigma2
+    return quaternion_to_matrix(np.stack([w, x, y, z], axis=-1))
+
+
+def quaternion_to_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4), scalar first."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=-2,
+    )
+
+
+def hat(omega: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
+    omega = np.asarray(omega, dtype=float)
+    x, y, z = np.moveaxis(omega, -1, 0)
+    zero = np.zeros_like(x)
+    return np.stack(
+        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
+        axis=-2,
+    )
+
+
+def exp_so3(omega: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rodrigues' formula, batched: rotation vectors (..., 3) -> matrices (..., 3, 3).
+
+    Uses the Taylor series of the coefficients below 1e-4 rad so it is exact to machine
+    precision near the identity, where the Levenberg-Marquardt updates live.
+    """
+    omega = np.asarray(omega, dtype=float)
+    theta2 = np.sum(omega * omega, axis=-1)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    K = hat(omega)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def log_so3(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3); inverse of :func:`exp_so3`."""
+    from scipy.spatial.transform import Rotation
+
+    R = np.asarray(R, dtype=float)
+    flat = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec()
+    return flat.reshape(R.shape[:-2] + (3,))
+
+
+def rotation_angle_deg(R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation angle in degrees of rotation matrices (..., 3, 3), in [0, 180]."""
+    R = np.asarray(R, dtype=float)
+    cos = (np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def project_to_so3(M: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Nearest rotation (Frobenius norm) to each matrix (..., 3, 3), by batched SVD."""
+    U, _, Vt = np.linalg.svd(np.asarray(M, dtype=float))
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    U = U.copy()
+    U[..., :, 2] *= d[..., None]
+    return U @ Vt
+
+
+def wahba(
+    body: NDArray[np.float64],
+    world: NDArray[np.float64],
+    weights: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """Solve Wahba's problem for a batch: ``R = argmin Σ_k w_k |body_k − R world_k|²``.
+
+    ``body`` and ``world`` have shape (..., K, 3) (K observed directions per problem, K >= 2 and
+    not all parallel); ``weights`` (..., K) defaults to ones. Returns (..., 3, 3) rotations that
+    map world vectors to body vectors, via the batched SVD of the attitude profile matrix
+    ``B = Σ w_k body_k world_kᵀ`` (Markley 1988).
+    """
+    body = np.asarray(body, dtype=float)
+    world = np.asarray(world, dtype=float)
+    if weights is None:
+        weights = np.ones(body.shape[:-1])
+    B = np.einsum("...k,...ki,...kj->...ij", weights, body, world)
+    return project_to_so3(B)
