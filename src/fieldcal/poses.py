@@ -182,10 +182,10 @@ def stats_from_means(
         return SensorStats(m, n, c, int(n.sum() - len(n)))
 
     stats = PoseStats(one(accel_means, accel_cov, "accel"), one(mag_means, mag_cov, "mag"))
-    if stats.accel is not None and stats.mag is not None:
-        if stats.accel.n_poses != stats.mag.n_poses:
-            raise ValueError(
-                f"accel has {stats.accel.n_poses} poses but mag has {stats.mag.n_poses}; "
-                "pass the same poses for both sensors"
-            )
+    a, m = stats.accel, stats.mag
+    if a is not None and m is not None and a.n_poses != m.n_poses:
+        raise ValueError(
+            f"accel has {a.n_poses} poses but mag has {m.n_poses}; "
+            "pass the same poses for both sensors"
+        )
     return stats

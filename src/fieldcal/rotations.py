@@ -86,7 +86,7 @@ def log_so3(R: NDArray[np.float64]) -> NDArray[np.float64]:
 
     R = np.asarray(R, dtype=float)
     flat = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec()
-    return flat.reshape(R.shape[:-2] + (3,))
+    return flat.reshape((*R.shape[:-2], 3))
 
 
 def rotation_angle_deg(R: NDArray[np.float64]) -> NDArray[np.float64]:
