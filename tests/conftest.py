@@ -1,0 +1,27 @@
+"""Shared test fixtures: where the real recordings live, and how to treat their absence."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def shared_data_dir(name: str) -> Path:
+    """``../shared/data/<name>``; skip when absent, but fail under CI (``CI`` set)."""
+    path = DATA / name
+    if not path.is_dir():
+        reason = f"real recordings not found at {path} (clone ../shared beside the project)"
+        if os.environ.get("CI"):
+            pytest.fail(reason)
+        pytest.skip(reason)
+    return path
+
+
+@pytest.fixture
+def shared_data():
+    """Call ``shared_data("sap6")`` for the folder of one recording set."""
+    return shared_data_dir
