@@ -159,8 +159,10 @@ def simulate(
 
     def draw(gain: Array, bias: Array, cov: Array, reference: Array) -> list[Array]:
         means = np.einsum("ij,njk,k->ni", gain, rotations, reference) + bias
-        noise = rng.standard_normal((int(counts.sum()), 3)) @ np.linalg.cholesky(cov).T
-        samples = np.repeat(means, counts, axis=0) + noise
+        noise = rng.standard_normal((int(counts.sum()), 3))
+        samples = np.repeat(means, counts, axis=0)
+        if np.any(cov):  # noise_alpha = (0, 0) gives noise-free samples
+            samples = samples + noise @ np.linalg.cholesky(cov).T
         return np.split(samples, np.cumsum(counts)[:-1])
 
     accel = draw(Ka, ba, Sa, gravity)
