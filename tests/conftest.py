@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -25,3 +26,8 @@ def shared_data_dir(name: str) -> Path:
 def shared_data():
     """Call ``shared_data("sap6")`` for the folder of one recording set."""
     return shared_data_dir
+
+
+# Property tests are part of CI: draw the same examples on every run.
+settings.register_profile("fieldcal", derandomize=True, deadline=None)
+settings.load_profile("fieldcal")

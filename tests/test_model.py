@@ -1,0 +1,200 @@
+"""The sensor model, its gauge, and the Calibration result (JSON, units, inverse model)."""
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import fieldcal
+from fieldcal.model import (
+    Calibration,
+    Diagnostics,
+    ParameterCovariance,
+    SensorCalibration,
+    canonical_gauge,
+    misalignment_angle_deg,
+)
+from fieldcal.rotations import exp_so3, random_rotations
+
+seeds = st.integers(0, 2**32 - 1)
+
+
+def _random_parameters(seed):
+    rng = np.random.default_rng(seed)
+    R = random_rotations(9, rng)
+    Ka = np.eye(3) + rng.uniform(-0.3, 0.3, (3, 3))
+    Km = np.eye(3) + rng.uniform(-0.3, 0.3, (3, 3))
+    g = rng.standard_normal(3)
+    h = rng.standard_normal(3)
+    return rng, R, Ka, Km, g, h
+
+
+def _full_calibration(seed=0) -> Calibration:
+    session = fieldcal.simulate("paper", seed=seed)
+    truth = session.truth
+    names = ("accel.bias[0]", "mag.gain[1,2]", "dip_deg")
+    return Calibration(
+        accel=SensorCalibration(
+            truth.accel.gain,
+            truth.accel.bias,
+            truth.accel.noise_cov,
+            gain_std=np.full((3, 3), 1e-3),
+            bias_std=np.full(3, 2e-3),
+            noise_cov_std=np.full((3, 3), 1e-6),
+        ),
+        mag=truth.mag,
+        gravity=truth.gravity,
+        magnetic=truth.magnetic,
+        rotations=truth.rotations,
+        method="mle",
+        cost=40.123456789,
+        iterations=5,
+        converged=True,
+        options={"gamma": 1e-4, "nested": {"a": [1, 2]}},
+        dip_std_deg=0.01,
+        misalignment_std_deg=0.02,
+        covariance=ParameterCovariance(names, np.diag([1e-6, 4e-6, 1e-4])),
+        diagnostics=Diagnostics(23.5, 23, 0.43, np.arange(15.0), "converged"),
+        poses=tuple(
+            {"index": i, "samples": 500, "start": 10 * i, "stop": 10 * i + 9} for i in range(15)
+        ),
+    )
+
+
+@given(seeds)
+def test_canonical_gauge_keeps_every_prediction(seed):
+    _, R, Ka, Km, g, h = _random_parameters(seed)
+    R2, Ka2, Km2, g2, h2 = canonical_gauge(R, Ka, Km, g, h)
+    before_a = np.einsum("ij,njk,k->ni", Ka, R, g)
+    before_m = np.einsum("ij,njk,k->ni", Km, R, h)
+    np.testing.assert_allclose(np.einsum("ij,njk,k->ni", Ka2, R2, g2), before_a, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("ij,njk,k->ni", Km2, R2, h2), before_m, atol=1e-12)
+    np.testing.assert_allclose(Ka2, Ka2.T, atol=1e-14)
+    assert np.all(np.linalg.eigvalsh(Ka2) > 0)
+    np.testing.assert_allclose(g2, [0, 0, -1])
+    assert h2[1] == pytest.approx(0, abs=1e-14) and h2[0] > 0
+    assert np.linalg.norm(h2) == pytest.approx(1)
+    np.testing.assert_allclose(np.linalg.det(R2), 1.0, atol=1e-12)
+
+
+@given(seeds)
+def test_canonical_gauge_mag_frame_makes_the_magnetometer_symmetric(seed):
+    _, R, Ka, Km, g, h = _random_parameters(seed)
+    _, Ka2, Km2, _, _ = canonical_gauge(R, Ka, Km, g, h, body_frame="mag")
+    np.testing.assert_allclose(Km2, Km2.T, atol=1e-14)
+    assert np.all(np.linalg.eigvalsh(Km2) > 0)
+    assert not np.allclose(Ka2, Ka2.T, atol=1e-6)
+
+
+@given(seeds, st.floats(-1e3, 1e3))
+def test_correct_inverts_the_forward_model(seed, scale):
+    rng = np.random.default_rng(seed)
+    gain = np.eye(3) + rng.uniform(-0.5, 0.5, (3, 3))
+    sensor = SensorCalibration(gain, rng.uniform(-5, 5, 3), np.eye(3))
+    body = scale * rng.standard_normal((4, 2, 3))
+    np.testing.assert_allclose(
+        sensor.correct(sensor.distort(body)), body, atol=1e-9 * (1 + abs(scale))
+    )
+
+
+def test_correct_rejects_wrong_shapes():
+    sensor = SensorCalibration(np.eye(3), np.zeros(3), np.eye(3))
+    with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
+        sensor.correct(np.zeros((5, 2)))
+
+
+def test_predicted_means_follow_eq4():
+    truth = fieldcal.simulate("paper", seed=4).truth
+    a, m = truth.predicted_means()
+    i = 3
+    np.testing.assert_allclose(
+        a[i], truth.accel.gain @ truth.rotations[i] @ truth.gravity + truth.accel.bias
+    )
+    np.testing.assert_allclose(
+        m[i], truth.mag.gain @ truth.rotations[i] @ truth.magnetic + truth.mag.bias
+    )
+    # the calibrated vectors of both sensors live in one body frame: R_i g and R_i h
+    np.testing.assert_allclose(truth.correct_accel(a), truth.rotations @ truth.gravity, atol=1e-12)
+    np.testing.assert_allclose(truth.correct_mag(m), truth.rotations @ truth.magnetic, atol=1e-12)
+
+
+def test_json_round_trip_is_lossless():
+    cal = _full_calibration()
+    text = cal.to_json()
+    back = Calibration.from_json(text)
+    assert back == cal
+    assert back.to_json() == text
+    doc = json.loads(text)
+    assert doc["schema"] == "fieldcal.calibration" and doc["schema_version"] == 1
+    assert doc["fieldcal_version"] == fieldcal.__version__
+    assert doc["method"] == "mle" and doc["options"]["gamma"] == 1e-4
+    assert doc["created"].startswith("20")
+    assert set(doc["units"]) >= {"accel_raw", "mag_raw", "accel_calibrated", "mag_calibrated"}
+    assert doc["dip_deg"] == pytest.approx(cal.dip_deg)
+    assert doc["poses"][3] == {"index": 3, "samples": 500, "start": 30, "stop": 39}
+
+
+def test_json_round_trip_keeps_nan_and_missing_sensor():
+    cal = _full_calibration()
+    import dataclasses
+
+    cal = dataclasses.replace(cal, mag=None, magnetic=None, cost=float("nan"))
+    back = Calibration.from_json(cal.to_json())
+    assert back == cal and back.mag is None and np.isnan(back.cost) and back.dip_deg is None
+
+
+def test_json_rejects_foreign_and_future_documents():
+    with pytest.raises(ValueError, match="not a fieldcal calibration"):
+        Calibration.from_json('{"schema": "something-else"}')
+    doc = json.loads(_full_calibration().to_json())
+    doc["schema_version"] = 99
+    with pytest.raises(ValueError, match="upgrade fieldcal"):
+        Calibration.from_json(json.dumps(doc))
+    with pytest.raises(ValueError, match="not a fieldcal calibration JSON"):
+        Calibration.from_json("{not json")
+
+
+def test_field_magnitudes_change_units_not_predictions():
+    cal = _full_calibration()
+    phys = cal.with_field_magnitudes(gravity=9.80665, field_strength=48.0)
+    for before, after in zip(cal.predicted_means(), phys.predicted_means(), strict=True):
+        np.testing.assert_allclose(after, before, atol=1e-12)
+    np.testing.assert_allclose(phys.accel.gain, cal.accel.gain / 9.80665)
+    np.testing.assert_allclose(phys.accel.gain_std, cal.accel.gain_std / 9.80665)
+    assert phys.gravity_norm == pytest.approx(9.80665)
+    assert phys.field_strength == pytest.approx(48.0)
+    assert phys.dip_deg == pytest.approx(cal.dip_deg)
+    raw = cal.predicted_means()[0]
+    np.testing.assert_allclose(phys.correct_accel(raw), 9.80665 * cal.correct_accel(raw))
+    assert phys.covariance.std("mag.gain[1,2]") == pytest.approx(2e-3 / 48.0)
+    assert phys.covariance.std("dip_deg") == pytest.approx(1e-2)
+    assert phys.units["accel_calibrated"] == "|g| = 9.80665"
+
+
+def test_dip_sign_convention():
+    """NED: the field pointing below the horizon (h_z > 0) has a positive dip."""
+    down = fieldcal.simulate("paper", seed=1, dip_deg=(60, 60)).truth
+    up = fieldcal.simulate("paper", seed=1, dip_deg=(-30, -30)).truth
+    assert down.dip_deg == pytest.approx(60) and down.magnetic[2] > 0
+    assert up.dip_deg == pytest.approx(-30)
+
+
+def test_misalignment_angle_known_answers():
+    P = np.diag([1.1, 0.9, 1.05])
+    tilt = exp_so3(np.radians(3.0) * np.array([0.6, 0.0, 0.8]))
+    assert misalignment_angle_deg(P, 0.8 * tilt) == pytest.approx(3.0)
+    swapped = np.array([[0, 1, 0], [1, 0, 0], [0, 0, -1.0]])  # "+y+x-z" wiring
+    assert misalignment_angle_deg(P, swapped @ tilt) == pytest.approx(3.0)
+    mirrored = np.diag([1.0, 1.0, -1.0])  # a left-handed magnetometer
+    assert misalignment_angle_deg(P, mirrored @ tilt) == pytest.approx(3.0)
+    assert misalignment_angle_deg(P, P) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_calibration_is_immutable():
+    cal = _full_calibration()
+    with pytest.raises(AttributeError):
+        cal.method = "x"
+    with pytest.raises(ValueError):
+        cal.accel.gain[0, 0] = 2.0
