@@ -27,8 +27,6 @@ MIN_POSES = 8
 
 
 def _method(name: str) -> Callable[..., Calibration]:
-    if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
     module = importlib.import_module(f".methods.{METHODS[name]}", __package__)
     return module.fit
 
@@ -36,6 +34,8 @@ def _method(name: str) -> Callable[..., Calibration]:
 def _noise_cov(value: Any, name: str) -> np.ndarray:
     """A user's noise: a standard deviation (scalar or per axis) or a 3x3 covariance."""
     array = np.asarray(value, dtype=float)
+    if array.ndim <= 1 and not np.all(array > 0):
+        raise ValueError(f"noise for {name} must be finite and positive, got {value!r}")
     if array.ndim == 0:
         cov = np.eye(3) * float(array) ** 2
     elif array.shape == (3,):
@@ -116,7 +116,8 @@ def calibrate(
     -------
     Calibration
     """
-    fit = _method(method)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if body_frame not in ("accel", "mag"):
         raise ValueError(f"body_frame must be 'accel' or 'mag', got {body_frame!r}")
     continuous = method == "ellipsoid" and any(
@@ -143,7 +144,7 @@ def calibrate(
                 },
             )
         )
-    cal = fit(
+    cal = _method(method)(
         stats,
         raw_accel=accel,
         raw_mag=mag,
