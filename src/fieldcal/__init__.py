@@ -13,6 +13,7 @@ __version__ = "0.1.0"
 
 from . import metrics
 from .api import calibrate
+from .methods.ellipsoid import align, fit_ellipsoid
 from .model import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
 from .poses import PoseStats, SensorStats, stats_from_means, summarize
 from .simulate import Session, simulate
@@ -26,7 +27,9 @@ __all__ = [
     "SensorStats",
     "Session",
     "__version__",
+    "align",
     "calibrate",
+    "fit_ellipsoid",
     "metrics",
     "simulate",
     "stats_from_means",

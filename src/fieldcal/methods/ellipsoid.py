@@ -1,0 +1,762 @@
+"""CK-Explorer's calibration: an ellipsoid fit per sensor, then dot-product alignment.
+
+The seed is ``../shared/seeds/004_bce6d316cac7a7b6.txt``; equation numbers below are its own.
+
+1. Each sensor's samples are fitted with the quadric of Eq. 8 (:mod:`fieldcal.ellipsoid_fit`),
+   giving the centre (hard iron, offset) and ``M = LᵀL`` (Eq. 9-12); ``L`` is the reverse
+   triangular factor of Eq. 13 and ``L (s − c)`` the corrected reading (Eq. 14).
+2. The magnetometer's triad is rotated onto the accelerometer's by minimising Eq. 16,
+   ``Σ (aᵀ R_mis m − |a||m| β)²``, over the stereographic parameters ``(X, Y, Z)`` of Eq. 18-24
+   (pole at ``q1 = +1``, identity at ``(1, 0, 0)``) and ``β = cos θ``, by Levenberg-Marquardt.
+   The magnetometer's correction is ``R_mis L (m − c)`` (Eq. 25).
+
+``faithful=True`` does exactly that. The default (``faithful=False``) fixes the ways it breaks:
+conditioned least squares instead of normal equations, an ellipsoid-specific fallback (Li &
+Griffiths 2004) when the quadric is not an ellipsoid, unit vectors and ``|β| <= 1`` in Eq. 16,
+a closed-form start (so a large misalignment does not trap the solver in a wrong minimum) and
+an analytic Jacobian, and a solver that did not converge raises instead of returning.
+``docs/methods/ellipsoid.md`` maps each function to its equation.
+
+Conventions: ``fit_ellipsoid`` and ``align`` return the seed's own numbers (``L``, centre,
+``R_mis``, ``β``); :func:`fit` (``fieldcal.calibrate(..., method="ellipsoid")``) turns them into
+fieldcal's model, ``gain = (R_mis L)⁻¹``, ``bias = c``, and re-expresses the result in
+fieldcal's gauge (:func:`fieldcal.model.canonical_gauge`). With ``a = (0, 0, −1)`` and
+``m = (cos dip, 0, sin dip)``, ``β = a·m = −sin dip``: ``dip = θ − 90°``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import least_squares
+
+from ..diagnostics import certify, pose_table
+from ..ellipsoid_fit import (
+    Quadric,
+    algebraic_fit,
+    ellipsoid_radii,
+    li_griffiths_fit,
+    reverse_triangular_factor,
+)
+from ..model import Calibration, Diagnostics, SensorCalibration, canonical_gauge
+from ..poses import PoseStats
+from ..rotations import exp_so3, project_to_so3, quaternion_to_matrix, rotation_angle_deg, wahba
+
+__all__ = [
+    "MIN_SAMPLES",
+    "Alignment",
+    "AlignmentError",
+    "EllipsoidFit",
+    "NotAnEllipsoidWarning",
+    "align",
+    "fit",
+    "fit_ellipsoid",
+    "quaternion_to_stereographic",
+    "stereographic_to_quaternion",
+]
+
+Array = NDArray[np.float64]
+
+#: Continuous input: Eq. 8 has 9 free parameters; one more sample leaves a residual from
+#: which the noise can be estimated. (The closed-form alignment start needs 9 pairs too.)
+MIN_SAMPLES = 10
+#: Pose input: 9 free parameters need 9 distinct orientations; fewer poses leave the fit
+#: determined by the noise alone.
+MIN_POSES = 9
+
+_OPTIONS = ("faithful", "inclination_deg")
+
+
+class NotAnEllipsoidWarning(RuntimeWarning):
+    """The algebraic fit of Eq. 8 gave a hyperboloid (poor coverage): Eq. 13 would be NaN."""
+
+
+class AlignmentError(ValueError):
+    """The Levenberg-Marquardt minimisation of Eq. 16 did not converge."""
+
+
+# =========================================================================== ellipsoid fit
+@dataclass(frozen=True, eq=False)
+class EllipsoidFit:
+    """One sensor's ellipsoid calibration in the seed's terms (Sec. 2).
+
+    ``corrected = correction @ (raw − center)`` (Eq. 14) lies on the unit sphere; in fieldcal's
+    model terms ``raw = gain @ v + bias`` with ``gain = correction⁻¹`` and ``bias = center``.
+
+    Attributes
+    ----------
+    center : (3,) array
+        ``(x_o, y_o, z_o)``: offset or hard iron, raw units.
+    correction : (3, 3) array
+        ``L``, lower triangular with ``LᵀL = M`` (Eq. 13); NaN when the fit is no ellipsoid
+        (only with ``faithful=True``).
+    gain, bias : arrays
+        ``L⁻¹`` and ``center``: the same calibration as fieldcal's forward model.
+    shape : (3, 3) array
+        ``M = LᵀL`` (Eq. 12).
+    coefficients : (10,) array
+        ``v0..v9`` of Eq. 8 with ``v0 + v1 + v2 = −3``.
+    kappa : float
+        ``κ`` of Eq. 11.
+    radii : (3,) array
+        Semi-axes of the ellipsoid, raw units, longest first.
+    fit_method : str
+        ``"algebraic"`` (Eq. 8) or ``"li-griffiths"`` (fallback).
+    fallback_used, is_ellipsoid, faithful : bool
+    residual_rms : float
+        RMS of ``|L (s − c)| − 1`` (unit-sphere units).
+    n_samples : int
+    """
+
+    center: Array
+    correction: Array
+    gain: Array
+    bias: Array
+    shape: Array
+    coefficients: Array
+    kappa: float
+    radii: Array
+    fit_method: str
+    fallback_used: bool
+    is_ellipsoid: bool
+    faithful: bool
+    residual_rms: float
+    n_samples: int
+
+    def correct(self, raw: ArrayLike) -> Array:
+        """Eq. 14: ``L (raw − center)`` for readings (..., 3)."""
+        return (np.asarray(raw, dtype=float) - self.center) @ self.correction.T
+
+
+def _check_samples(samples: ArrayLike, name: str, minimum: int = MIN_SAMPLES) -> Array:
+    x = np.asarray(samples, dtype=float)
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise ValueError(f"{name}: expected an (n, 3) array of x, y, z readings, got {x.shape}")
+    if x.shape[0] < minimum:
+        raise ValueError(
+            f"{name}: {x.shape[0]} samples given; at least {minimum} are needed (the ellipsoid "
+            "of Eq. 8 has 9 free parameters, and one more leaves a residual for the noise)"
+        )
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name}: NaN or inf readings; remove those samples before calibrating")
+    return x
+
+
+def _ellipsoid_quadric(x: Array, faithful: bool, name: str) -> tuple[Quadric, bool]:
+    """Eq. 8-12 on all samples; hardened: conditioned, with the Li & Griffiths fallback."""
+    quadric = algebraic_fit(x, conditioned=not faithful)
+    if quadric.is_ellipsoid:
+        return quadric, False
+    if faithful:
+        warnings.warn(
+            f"{name}: the quadric of Eq. 8 is not an ellipsoid (poor coverage), so L (Eq. 13) "
+            "is NaN; use faithful=False for the ellipsoid-specific fallback",
+            NotAnEllipsoidWarning,
+            stacklevel=3,
+        )
+        return quadric, False
+    warnings.warn(
+        f"{name}: the quadric of Eq. 8 is not an ellipsoid (the samples cover too few "
+        "orientations); fell back to the Li & Griffiths ellipsoid-specific fit",
+        NotAnEllipsoidWarning,
+        stacklevel=3,
+    )
+    quadric = li_griffiths_fit(x)
+    if not quadric.is_ellipsoid:  # pragma: no cover - 4J − I² = 1 admits only ellipsoids
+        raise ValueError(f"{name}: no ellipsoid fits these samples; record more orientations")
+    return quadric, True
+
+
+def fit_ellipsoid(samples: ArrayLike, *, faithful: bool = False) -> EllipsoidFit:
+    """Calibrate one sensor alone (Sec. 2): offset/hard iron, scale, cross-axis/soft iron.
+
+    Parameters
+    ----------
+    samples : (n, 3) array
+        Raw readings of an accelerometer at rest or a magnetometer, in as many orientations as
+        possible (n >= 10).
+    faithful : bool
+        ``True``: the seed's computation (normal equations on raw numbers; a hyperboloid gives
+        a NaN ``L`` with a :class:`NotAnEllipsoidWarning`). ``False`` (default): conditioned
+        least squares, and the Li & Griffiths fit (with the warning) when Eq. 8 is no ellipsoid.
+
+    Returns
+    -------
+    EllipsoidFit
+        The seed's ``L`` and centre; ``correct(raw)`` applies Eq. 14.
+    """
+    x = _check_samples(samples, "samples")
+    quadric, fallback = _ellipsoid_quadric(x, faithful, "samples")
+    return _ellipsoid_result(x, quadric, fallback, faithful)
+
+
+def _ellipsoid_result(x: Array, quadric: Quadric, fallback: bool, faithful: bool) -> EllipsoidFit:
+    L = reverse_triangular_factor(quadric.shape)  # Eq. 13
+    finite = bool(np.all(np.isfinite(L)))
+    gain = np.linalg.inv(L) if finite else np.full((3, 3), np.nan)
+    with np.errstate(invalid="ignore"):
+        norms = np.linalg.norm((x - quadric.center) @ L.T, axis=1)  # Eq. 14
+    return EllipsoidFit(
+        center=quadric.center,
+        correction=L,
+        gain=gain,
+        bias=quadric.center,
+        shape=quadric.shape,
+        coefficients=quadric.coefficients,
+        kappa=quadric.kappa,
+        radii=ellipsoid_radii(quadric.shape),
+        fit_method="li-griffiths" if fallback else "algebraic",
+        fallback_used=fallback,
+        is_ellipsoid=quadric.is_ellipsoid and finite,
+        faithful=faithful,
+        residual_rms=float(np.sqrt(np.mean((norms - 1.0) ** 2))),
+        n_samples=int(x.shape[0]),
+    )
+
+
+# =========================================================================== stereographic
+def stereographic_to_quaternion(p: ArrayLike) -> Array:
+    """Eq. 21-24: ``(X, Y, Z)`` -> unit quaternion ``(q0, q1, q2, q3)``, q0 scalar.
+
+    The projection's pole is ``q1 = +1``, so the identity ``q = (1, 0, 0, 0)`` is
+    ``(X, Y, Z) = (1, 0, 0)``.
+    """
+    X, Y, Z = np.moveaxis(np.asarray(p, dtype=float), -1, 0)
+    S = 1.0 + X * X + Y * Y + Z * Z
+    return np.stack([2 * X / S, (S - 2.0) / S, 2 * Y / S, 2 * Z / S], axis=-1)
+
+
+def quaternion_to_stereographic(q: ArrayLike) -> Array:
+    """Eq. 18-20: ``X = q0/(1 − q1)``, ``Y = q2/(1 − q1)``, ``Z = q3/(1 − q1)``."""
+    q = np.asarray(q, dtype=float)
+    return np.stack([q[..., 0], q[..., 2], q[..., 3]], axis=-1) / (1.0 - q[..., 1:2])
+
+
+def _quaternion_jacobian(p: Array) -> Array:
+    """``∂q/∂(X, Y, Z)`` (4 x 3) of Eq. 21-24."""
+    S = 1.0 + p @ p
+    J = np.empty((4, 3))
+    J[[0, 2, 3]] = 2.0 * np.eye(3) / S - 4.0 * np.outer(p, p) / S**2
+    J[1] = 4.0 * p / S**2
+    return J
+
+
+def _rotation_derivatives(q: Array) -> Array:
+    """``∂R/∂q_k`` (4 x 3 x 3) of the polynomial Eq. 17."""
+    q0, q1, q2, q3 = q
+    return 2.0 * np.array(
+        [
+            [[0, -q3, q2], [q3, 0, -q1], [-q2, q1, 0]],
+            [[0, q2, q3], [q2, -2 * q1, -q0], [q3, q0, -2 * q1]],
+            [[-2 * q2, q1, q0], [q1, 0, q3], [-q0, q3, -2 * q2]],
+            [[-2 * q3, -q0, q1], [q0, -2 * q3, q2], [q1, q2, 0]],
+        ]
+    )
+
+
+# =========================================================================== alignment
+@dataclass(frozen=True, eq=False)
+class Alignment:
+    """The magnetometer-to-accelerometer rotation of Sec. 3 and the angle between the fields.
+
+    ``rotation @ m`` expresses a calibrated magnetometer vector in the accelerometer's axes
+    (Eq. 25); ``beta = cos θ`` with θ the angle between the accelerometer's reading (the
+    specific force, "up") and the magnetic field. In fieldcal's NED convention the dip is
+    ``θ − 90°`` (positive when the field points below the horizon).
+
+    Attributes
+    ----------
+    rotation : (3, 3) array
+        ``R_mis`` (Eq. 17).
+    beta, theta_deg, dip_deg : float
+        ``β``, ``θ = acos β`` (NaN when ``|β| > 1``, possible only with ``faithful=True``) and
+        the dip.
+    misalignment_deg : float
+        Rotation angle of ``R_mis``.
+    quaternion : (4,) array
+        ``(q0, q1, q2, q3)``, scalar first, ``q0 >= 0``.
+    stereographic : (3,) array
+        ``(X, Y, Z)`` of Eq. 18-20 for that quaternion.
+    iterations, nfev : int
+        Levenberg-Marquardt iterations (Jacobian evaluations, analytic or, with
+        ``faithful=True``, by forward differences) and residual evaluations.
+    status : int
+        MINPACK's status (``scipy.optimize.least_squares``): > 0 converged, 0 iteration limit.
+    message : str
+    converged : bool
+    cost : float
+        Sum of squared residuals of Eq. 16 (unit vectors unless ``faithful``).
+    residual_rms : float
+    start : str
+        Which start gave the result: ``"identity"``, ``"closed-form"`` or ``"inclination"``.
+    faithful : bool
+    """
+
+    rotation: Array
+    beta: float
+    theta_deg: float
+    dip_deg: float
+    misalignment_deg: float
+    quaternion: Array
+    stereographic: Array
+    iterations: int
+    nfev: int
+    status: int
+    message: str
+    converged: bool
+    cost: float
+    residual_rms: float
+    start: str
+    faithful: bool
+
+
+def _check_pairs(accel: ArrayLike, mag: ArrayLike, minimum: int) -> tuple[Array, Array]:
+    a = _check_samples(accel, "accel_cal", minimum)
+    m = _check_samples(mag, "mag_cal", minimum)
+    if a.shape != m.shape:
+        raise ValueError(
+            f"accel_cal has {a.shape[0]} samples but mag_cal has {m.shape[0]}; the alignment "
+            "needs the two sensors' readings taken together, pair by pair"
+        )
+    return a, m
+
+
+def _outer_rows(a: Array, m: Array) -> Array:
+    """Rows ``vec(a mᵀ)`` (n x 9): ``aᵀ R m = vec(a mᵀ) · vec(R)``, so Eq. 16 is one matmul."""
+    return np.einsum("ni,nj->nij", a, m).reshape(-1, 9)
+
+
+def _forward_difference(fun: Callable[[Array], Array]) -> Callable[[Array], Array]:
+    """Forward-difference Jacobian with lsqcurvefit's step ``√eps · max(|x|, 1)``.
+
+    Given to MINPACK as a callable so that it reports its iteration count (``njev``).
+    """
+
+    def jacobian(x: Array) -> Array:
+        f0 = fun(x)
+        steps = np.sqrt(np.finfo(float).eps) * np.maximum(np.abs(x), 1.0)
+        columns = [(fun(x + h * e) - f0) / h for h, e in zip(steps, np.eye(x.size), strict=True)]
+        return np.column_stack(columns)
+
+    return jacobian
+
+
+def _residual_faithful(a: Array, m: Array) -> Callable[[Array], Array]:
+    """Eq. 16 as in the seed: raw vectors, ``β`` unconstrained, R from Eq. 21-24 and 17."""
+    rows = _outer_rows(a, m)
+    scale = np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1)
+
+    def residual(params: Array) -> Array:
+        R = quaternion_to_matrix(stereographic_to_quaternion(params[:3]))
+        return rows @ R.ravel() - scale * params[3]
+
+    return residual
+
+
+def _residual_hardened(
+    rows: Array, R0: Array
+) -> tuple[Callable[[Array], Array], Callable[[Array], Array]]:
+    """Eq. 16 on unit vectors with ``β = cos θ``, ``R_mis = R0 R(X, Y, Z)``; analytic Jacobian.
+
+    ``rows`` are :func:`_outer_rows` of the unit vectors. The stereographic chart (Eq. 18-24)
+    is centred on the start ``R0``, so its pole (a 180° rotation away) is never approached.
+    """
+
+    def residual(params: Array) -> Array:
+        R = R0 @ quaternion_to_matrix(stereographic_to_quaternion(params[:3]))
+        return rows @ R.ravel() - np.cos(params[3])
+
+    def jacobian(params: Array) -> Array:
+        q = stereographic_to_quaternion(params[:3])
+        dR = R0 @ _rotation_derivatives(q)  # ∂(R0 R)/∂q_k, Eq. 17
+        J = np.empty((rows.shape[0], 4))
+        J[:, :3] = rows @ dR.reshape(4, 9).T @ _quaternion_jacobian(params[:3])
+        J[:, 3] = np.sin(params[3])
+        return J
+
+    return residual, jacobian
+
+
+def _closed_form_start(a: Array, m: Array) -> tuple[Array, float]:
+    """``aᵀ R m = β`` is linear in R's nine entries and β: the SVD null vector, projected.
+
+    Each pair gives one row ``[vec(a mᵀ), −1]``; the right singular vector of the smallest
+    singular value is ``(vec R, β)`` up to scale and sign, fixed by projecting onto SO(3).
+    """
+    rows = np.column_stack([_outer_rows(a, m), -np.ones(len(a))])
+    x = np.linalg.svd(rows, full_matrices=False)[2][-1]
+    R = x[:9].reshape(3, 3)
+    x = x * (np.sign(np.linalg.det(R)) or 1.0)
+    scale = 3.0 / np.sum(np.linalg.svd(x[:9].reshape(3, 3), compute_uv=False))
+    return project_to_so3(scale * x[:9].reshape(3, 3)), float(np.clip(scale * x[9], -1, 1))
+
+
+def _initial_beta(inclination_deg: float | None) -> float:
+    """The seed's ``β_est = cos(90° + inclination)``, or 0 when no inclination is given."""
+    if inclination_deg is None:
+        return 0.0
+    if not (np.isfinite(inclination_deg) and -90.0 <= inclination_deg <= 90.0):
+        raise ValueError(f"inclination_deg must be in [-90, 90], got {inclination_deg!r}")
+    return float(np.cos(np.radians(90.0 + inclination_deg)))
+
+
+def _alignment(R: Array, beta: float, result: Any, faithful: bool, start: str) -> Alignment:
+    from scipy.spatial.transform import Rotation
+
+    xyzw = Rotation.from_matrix(R).as_quat()
+    q = np.array([xyzw[3], *xyzw[:3]])
+    q = q if q[0] >= 0 else -q
+    with np.errstate(invalid="ignore"):
+        theta = float(np.degrees(np.arccos(beta))) if abs(beta) <= 1 else float("nan")
+    return Alignment(
+        rotation=R,
+        beta=float(beta),
+        theta_deg=theta,
+        dip_deg=theta - 90.0,
+        misalignment_deg=float(rotation_angle_deg(R)),
+        quaternion=q,
+        stereographic=quaternion_to_stereographic(q),
+        iterations=int(result.njev),
+        nfev=int(result.nfev),
+        status=int(result.status),
+        message=str(result.message),
+        converged=bool(result.status > 0),
+        cost=float(2.0 * result.cost),
+        residual_rms=float(np.sqrt(np.mean(result.fun**2))),
+        start=start,
+        faithful=faithful,
+    )
+
+
+def _align_faithful(a: Array, m: Array, beta0: float) -> Alignment:
+    """The seed's Algorithm 2: LM from ``q = identity``, finite-difference Jacobian."""
+    residual = _residual_faithful(a, m)
+    x0 = np.array([1.0, 0.0, 0.0, beta0])
+    result = least_squares(residual, x0, jac=_forward_difference(residual), method="lm")
+    R = quaternion_to_matrix(stereographic_to_quaternion(result.x[:3]))
+    alignment = _alignment(R, float(result.x[3]), result, True, "identity")
+    if not alignment.converged:
+        warnings.warn(f"alignment (Eq. 16) did not converge: {alignment.message}", stacklevel=3)
+    return alignment
+
+
+def _align_hardened(a: Array, m: Array, inclination_deg: float | None) -> Alignment:
+    """Eq. 16 on unit vectors from several starts (closed form, identity); keep the best."""
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    m = m / np.linalg.norm(m, axis=1, keepdims=True)
+    R_cf, beta_cf = _closed_form_start(a, m)
+    starts = [("closed-form", R_cf, beta_cf), ("identity", np.eye(3), 0.0)]
+    if inclination_deg is not None:
+        starts.append(("inclination", np.eye(3), _initial_beta(inclination_deg)))
+    rows = _outer_rows(a, m)
+    best: Alignment | None = None
+    for name, R0, beta0 in starts:
+        residual, jacobian = _residual_hardened(rows, R0)
+        theta0 = float(np.arccos(np.clip(beta0, -1 + 1e-9, 1 - 1e-9)))
+        x0 = np.array([1.0, 0.0, 0.0, theta0])
+        result = least_squares(residual, x0, jac=jacobian, method="lm", xtol=1e-12, ftol=1e-12)
+        R = R0 @ quaternion_to_matrix(stereographic_to_quaternion(result.x[:3]))
+        candidate = _alignment(R, float(np.cos(result.x[3])), result, False, name)
+        if best is None or (candidate.converged, -candidate.cost) > (best.converged, -best.cost):
+            best = candidate
+    assert best is not None
+    if not best.converged:
+        raise AlignmentError(
+            f"the alignment (Eq. 16) did not converge ({best.message}); check that accel and mag "
+            "samples are paired and cover many orientations"
+        )
+    return best
+
+
+def align(
+    accel_cal: ArrayLike,
+    mag_cal: ArrayLike,
+    *,
+    faithful: bool = False,
+    inclination_deg: float | None = None,
+) -> Alignment:
+    """Rotate the magnetometer's triad onto the accelerometer's (Sec. 3, Eq. 15-25).
+
+    Parameters
+    ----------
+    accel_cal, mag_cal : (n, 3) arrays
+        Calibrated accelerometer and magnetometer readings taken together (pair by pair),
+        e.g. ``fit_ellipsoid(...).correct(raw)``.
+    faithful : bool
+        ``True``: the seed's Levenberg-Marquardt on Eq. 16 as written (raw norms, free ``β``)
+        from ``q = identity``, finite-difference Jacobian; a run that did not converge is
+        returned with ``converged=False`` and a warning. ``False`` (default): unit vectors,
+        ``β = cos θ`` (so ``|β| <= 1``), analytic Jacobian, starts from the closed-form solution
+        and from the identity, keeps the lowest cost; raises :class:`AlignmentError` (a
+        ``ValueError``) when no start converged.
+    inclination_deg : float, optional
+        Expected magnetic inclination (dip), positive below the horizon; the seed's start
+        ``β0 = cos(90° + inclination)`` (default ``β0 = 0``).
+
+    Returns
+    -------
+    Alignment
+    """
+    faithful = bool(faithful)
+    a, m = _check_pairs(accel_cal, mag_cal, 4 if faithful else MIN_SAMPLES)
+    if np.any(np.linalg.norm(a, axis=1) == 0) or np.any(np.linalg.norm(m, axis=1) == 0):
+        raise ValueError("zero-length calibrated vectors; calibrate both sensors first")
+    if faithful:
+        return _align_faithful(a, m, _initial_beta(inclination_deg))
+    return _align_hardened(a, m, inclination_deg)
+
+
+# =========================================================================== fieldcal method
+def _continuous(samples: Any, name: str) -> Array | None:
+    """One sensor's continuous input: an (n, 3) array, or per-pose arrays stacked."""
+    if samples is None:
+        return None
+    if isinstance(samples, np.ndarray) and samples.ndim == 2:
+        return _check_samples(samples, name)
+    if isinstance(samples, Sequence) or isinstance(samples, np.ndarray):
+        try:
+            stacked = np.concatenate([np.atleast_2d(np.asarray(p, float)) for p in samples])
+        except ValueError:
+            raise ValueError(f"{name}: expected an (n, 3) array of samples") from None
+        return _check_samples(stacked, name)
+    raise ValueError(f"{name}: expected an (n, 3) array of samples, got {type(samples).__name__}")
+
+
+def _paired_pose_samples(raw_accel: Any, raw_mag: Any) -> tuple[Array, Array]:
+    """Sample pairs pose by pose; a pose with unequal counts keeps the first min(n_a, n_m)."""
+    pairs = [
+        (np.asarray(a, float).reshape(-1, 3), np.asarray(m, float).reshape(-1, 3))
+        for a, m in zip(raw_accel, raw_mag, strict=True)
+    ]
+    n = [min(len(a), len(m)) for a, m in pairs]
+    return (
+        np.concatenate([a[:k] for (a, _), k in zip(pairs, n, strict=True)]),
+        np.concatenate([m[:k] for (_, m), k in zip(pairs, n, strict=True)]),
+    )
+
+
+def _minimal_rotations(body: Array, reference: Array) -> Array:
+    """Per pose, the smallest rotation taking the world ``reference`` onto ``body`` (unit).
+
+    With one sensor the rotation about its field is unobservable; this fixes it to zero.
+    """
+    b = body / np.linalg.norm(body, axis=1, keepdims=True)
+    axis = np.cross(reference, b)
+    sin, cos = np.linalg.norm(axis, axis=1), b @ reference
+    helper = np.cross(reference, np.eye(3)[int(np.argmin(np.abs(reference)))])
+    axis = np.where((sin < 1e-12)[:, None], helper / np.linalg.norm(helper), axis)
+    unit = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    return exp_so3(unit * np.arctan2(sin, cos)[:, None])
+
+
+def _noise(
+    stats_sensor: Any, source: str | None, x: Array, fit_: EllipsoidFit
+) -> tuple[Array, str]:
+    """Eq. 7 when the poses give it; otherwise isotropic from the radial residuals.
+
+    For isotropic noise the radial component of a sample's error has the full variance σ²;
+    ``|L(s − c)| − 1`` times the mean radius is that component in raw units, and the fit used
+    9 degrees of freedom.
+    """
+    if stats_sensor is not None and stats_sensor.cov is not None:
+        return np.asarray(stats_sensor.cov, float), source or "scatter"
+    norms = np.linalg.norm(fit_.correct(x), axis=1)
+    radius = float(np.exp(np.mean(np.log(fit_.radii))))
+    var = float(np.sum((norms - 1.0) ** 2) * radius**2 / max(len(x) - 9, 1))
+    return np.eye(3) * var, "residuals"
+
+
+def _validate_options(options: dict[str, Any]) -> None:
+    unknown = sorted(set(options) - set(_OPTIONS))
+    if unknown:
+        raise ValueError(
+            f"unknown option(s) {unknown} for method='ellipsoid'; known: {', '.join(_OPTIONS)}"
+        )
+
+
+def fit(
+    stats: PoseStats | None,
+    *,
+    raw_accel: Any,
+    raw_mag: Any,
+    body_frame: str = "accel",
+    noise_sources: dict[str, str] | None = None,
+    faithful: bool = False,
+    inclination_deg: float | None = None,
+    **options: Any,
+) -> Calibration:
+    """``fieldcal.calibrate(..., method="ellipsoid")``: Sec. 2 per sensor, Sec. 3 jointly.
+
+    ``stats`` is ``None`` for continuous (n, 3) input, else the pose statistics; either way the
+    ellipsoids are fitted on all raw samples and the alignment on all sample pairs. Poses add
+    the per-pose rotations (two-vector Wahba on the calibrated pose means), Eq. 7's noise and
+    Eq. 8's cost; continuous input gives ``rotations`` of shape (0, 3, 3), residual noise and
+    ``cost = NaN``. Options: ``faithful`` (bool) and ``inclination_deg`` (float).
+    """
+    _validate_options(options)
+    faithful = bool(faithful)
+    noise_sources = noise_sources or {}
+    if stats is None:
+        xa, xm = _continuous(raw_accel, "accel"), _continuous(raw_mag, "mag")
+        if xa is None and xm is None:
+            raise ValueError("no data: pass accelerometer samples, magnetometer samples, or both")
+        pa, pm = xa, xm
+        if xa is not None and xm is not None and len(xa) != len(xm):
+            raise ValueError(
+                f"accel has {len(xa)} samples but mag has {len(xm)}; continuous input must pair "
+                "the two sensors' samples one to one (same length, same instants)"
+            )
+    else:
+        if stats.n_poses < MIN_POSES:
+            raise ValueError(
+                f"{stats.n_poses} poses given; the ellipsoid of Eq. 8 has 9 free parameters, so "
+                f"method='ellipsoid' needs at least {MIN_POSES} distinct poses"
+            )
+        xa = None if raw_accel is None else np.concatenate([np.reshape(p, (-1, 3)) for p in raw_accel])
+        xm = None if raw_mag is None else np.concatenate([np.reshape(p, (-1, 3)) for p in raw_mag])
+        pa, pm = (xa, xm) if xa is None or xm is None else _paired_pose_samples(raw_accel, raw_mag)
+    fits = {
+        name: None if x is None else _sensor_fit(x, faithful, name)
+        for name, x in (("accel", xa), ("mag", xm))
+    }
+    alignment = None
+    if fits["accel"] is not None and fits["mag"] is not None:
+        alignment = align(
+            fits["accel"].correct(pa),
+            fits["mag"].correct(pm),
+            faithful=faithful,
+            inclination_deg=inclination_deg,
+        )
+        if not np.isfinite(alignment.theta_deg):
+            raise ValueError(
+                f"the faithful alignment gave beta = {alignment.beta:.6g} (|beta| > 1, no angle); "
+                "use faithful=False, which keeps |beta| <= 1"
+            )
+    return _calibration(
+        stats, fits, alignment, {"accel": xa, "mag": xm}, noise_sources, body_frame,
+        {"faithful": faithful, "inclination_deg": inclination_deg, "body_frame": body_frame,
+         "input": "continuous" if stats is None else "poses"},
+    )
+
+
+def _sensor_fit(x: Array, faithful: bool, name: str) -> EllipsoidFit:
+    quadric, fallback = _ellipsoid_quadric(x, faithful, name)
+    result = _ellipsoid_result(x, quadric, fallback, faithful)
+    if not result.is_ellipsoid:
+        raise ValueError(
+            f"{name}: the faithful fit (Eq. 8) is not an ellipsoid, so L of Eq. 13 is NaN; "
+            "record more orientations or use faithful=False"
+        )
+    return result
+
+
+def _pose_rotations(
+    stats: PoseStats, fits: dict[str, EllipsoidFit | None], alignment: Alignment | None,
+    gravity: Array | None, magnetic: Array | None,
+) -> Array:
+    """Two-vector Wahba per pose on the calibrated pose means (one sensor: minimal rotation)."""
+    body, world, weights = [], [], []
+    for name, reference in (("accel", gravity), ("mag", magnetic)):
+        sensor_fit, sensor_stats = fits[name], getattr(stats, name)
+        if sensor_fit is None or reference is None:
+            continue
+        L = sensor_fit.correction
+        if name == "mag" and alignment is not None:
+            L = alignment.rotation @ L
+        v = (sensor_stats.means - sensor_fit.center) @ L.T
+        body.append(v / np.linalg.norm(v, axis=1, keepdims=True))
+        world.append(np.broadcast_to(reference, v.shape))
+        # weight each direction by its information: Δ_i over the calibrated noise variance
+        cov = sensor_stats.cov if sensor_stats.cov is not None else np.eye(3) * 1e-6
+        weights.append(sensor_stats.counts / (np.trace(L @ cov @ L.T) / 3.0))
+    if len(body) == 1:
+        return _minimal_rotations(body[0], world[0][0])
+    return wahba(np.stack(body, 1), np.stack(world, 1), np.stack(weights, 1))
+
+
+def _calibration(
+    stats: PoseStats | None,
+    fits: dict[str, EllipsoidFit | None],
+    alignment: Alignment | None,
+    samples: dict[str, Array | None],
+    noise_sources: dict[str, str],
+    body_frame: str,
+    options: dict[str, Any],
+) -> Calibration:
+    fa, fm = fits["accel"], fits["mag"]
+    gravity = None if fa is None else np.array([0.0, 0.0, -1.0])
+    magnetic = None
+    if fm is not None:
+        dip = 0.0 if alignment is None else np.radians(alignment.dip_deg)
+        magnetic = np.array([np.cos(dip), 0.0, np.sin(dip)])
+    Ka = None if fa is None else fa.gain
+    Km = None
+    if fm is not None:
+        Km = fm.gain if alignment is None else np.linalg.inv(alignment.rotation @ fm.correction)
+    rotations = (
+        np.zeros((0, 3, 3))
+        if stats is None
+        else _pose_rotations(stats, fits, alignment, gravity, magnetic)
+    )
+    R, Ka, Km, gravity, magnetic = canonical_gauge(
+        rotations, Ka, Km, gravity, magnetic, body_frame
+    )
+    sensors = {}
+    for name, sensor_fit, gain in (("accel", fa, Ka), ("mag", fm, Km)):
+        if sensor_fit is None:
+            sensors[name] = None
+            continue
+        cov, source = _noise(
+            None if stats is None else getattr(stats, name),
+            noise_sources.get(name),
+            samples[name],
+            sensor_fit,
+        )
+        sensors[name] = SensorCalibration(gain, sensor_fit.center, cov, noise_source=source)
+    status = _status(fits, alignment)
+    cal = Calibration(
+        accel=sensors["accel"],
+        mag=sensors["mag"],
+        gravity=gravity,
+        magnetic=magnetic if fm is not None else None,
+        rotations=R,
+        method="ellipsoid",
+        iterations=0 if alignment is None else alignment.iterations,
+        converged=True if alignment is None else alignment.converged,
+        options=options,
+    )
+    if stats is None:
+        diagnostics = Diagnostics(float("nan"), 0, float("nan"), np.zeros(0), status)
+        return dataclasses.replace(cal, diagnostics=diagnostics)
+    n = stats.n_poses
+    dof = 3 * n - 22 if fa is not None and fm is not None else n - 9
+    diagnostics = certify(cal, stats, dof=dof, status=status)
+    return dataclasses.replace(
+        cal,
+        cost=diagnostics.statistic,
+        diagnostics=diagnostics,
+        poses=pose_table(diagnostics, stats),
+    )
+
+
+def _status(fits: dict[str, EllipsoidFit | None], alignment: Alignment | None) -> str:
+    parts = [
+        f"{name}: {f.fit_method} fit, residual rms {f.residual_rms:.3g}"
+        for name, f in fits.items()
+        if f is not None
+    ]
+    if fits["mag"] is not None and fits["accel"] is None:
+        parts.append("dip not observable without an accelerometer (magnetic set to (1, 0, 0))")
+    if alignment is not None:
+        parts.append(
+            f"alignment: {alignment.message} (status {alignment.status}, start "
+            f"{alignment.start}); beta={alignment.beta:.6g} theta={alignment.theta_deg:.4f} deg "
+            f"R_mis angle={alignment.misalignment_deg:.4f} deg"
+        )
+    return "; ".join(parts)

@@ -1,0 +1,512 @@
+"""The seed paper's greedy calibration (Miranda & Ferreira, Sec. 4-5), as published.
+
+Steps of Sec. 5, each implemented by one function here:
+
+1. pose statistics (Eq. 5, 7): done by :func:`fieldcal.summarize` before :func:`fit`;
+2. initial values: ``b = 0``, ``K = I``, ``R_i = I``, ``g_z = −1``, ``h = (1, 0, 1)``
+   (:func:`initial_state`), ``J[0]`` by Eq. 8 (:func:`cost`);
+3. rotations: gradient-based local minimisation of Eq. 9 over each pose's quaternion
+   (:func:`rotation_step`);
+4. biases and fields by GLS (Eq. 11, 13, 15), sign fix, then the scale constraints of Sec. 4.3
+   ``g_z = −1``, ``h_x = 1`` (:func:`bias_field_step`);
+5. gains by GLS (Eq. 16, 17) when ``h_z`` moved by less than 1e-3 (:func:`gain_step`);
+6. ``J[k]`` by Eq. 8;
+7. repeat from 3 while ``J[k−1] − J[k] > γ`` (:func:`run_greedy`).
+
+Every choice the paper leaves open is listed, with the reason, in ``docs/methods/greedy.md``.
+This is the reference implementation of the paper: it is deliberately not improved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..diagnostics import certify, pose_table
+from ..model import Calibration, SensorCalibration, canonical_gauge
+from ..poses import PoseStats
+from ..rotations import quaternion_to_matrix
+from .gls import (
+    accel_bias_field_design,
+    accel_gain_design,
+    gls,
+    mag_bias_field_design,
+    mag_gain_design,
+    symmetric_from_vector,
+)
+
+__all__ = ["GreedyResult", "GreedyState", "fit", "run_greedy"]
+
+Array = NDArray[np.float64]
+
+#: Sec. 5, step 5: gains are re-estimated only when h_z moved by less than this.
+GAIN_TRIGGER = 1e-3
+
+DEFAULTS: dict[str, Any] = {
+    "gamma": 1e-4,
+    "max_iterations": 2000,
+    "rotation_tol": 1e-9,
+    "rotation_max_iterations": 200,
+}
+
+_X, _Z = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class Data:
+    """What Eq. 8 needs from the pose statistics: ``μ̂_s``, ``Δ_s`` and ``Σ̂_s⁻¹``."""
+
+    mean_a: Array
+    mean_m: Array
+    count_a: Array
+    count_m: Array
+    weight_a: Array
+    weight_m: Array
+
+    @classmethod
+    def from_stats(cls, stats: PoseStats) -> Data:
+        a, m = stats.accel, stats.mag
+        return cls(
+            mean_a=np.asarray(a.means, float),
+            mean_m=np.asarray(m.means, float),
+            count_a=np.asarray(a.counts, float),
+            count_m=np.asarray(m.counts, float),
+            weight_a=np.linalg.inv(a.cov),
+            weight_m=np.linalg.inv(m.cov),
+        )
+
+
+@dataclass(frozen=True)
+class GreedyState:
+    """Θ of Sec. 4 in the paper's gauge: ``g = (0, 0, g_z)``, ``h = (h_x, 0, h_z)``.
+
+    ``quaternions`` (N, 4) are unit, scalar first; ``R_i`` maps the world to the body frame.
+    """
+
+    accel_gain: Array
+    accel_bias: Array
+    g_z: float
+    mag_gain: Array
+    mag_bias: Array
+    h_x: float
+    h_z: float
+    quaternions: Array
+
+    @property
+    def gravity(self) -> Array:
+        return np.array([0.0, 0.0, self.g_z])
+
+    @property
+    def magnetic(self) -> Array:
+        return np.array([self.h_x, 0.0, self.h_z])
+
+    @property
+    def rotations(self) -> Array:
+        return quaternion_to_matrix(self.quaternions)
+
+    def predicted_means(self) -> tuple[Array, Array]:
+        """``μ̃_s[i] = K_s R_i f_s + b_s`` (Eq. 4), gauge-free: what Eq. 19 compares."""
+        R = self.rotations
+        accel = (R @ self.gravity) @ self.accel_gain.T + self.accel_bias
+        mag = (R @ self.magnetic) @ self.mag_gain.T + self.mag_bias
+        return accel, mag
+
+
+@dataclass
+class GreedyResult:
+    """Output of :func:`run_greedy`: the final state, the cost history and bookkeeping."""
+
+    state: GreedyState
+    costs: list[float]
+    iterations: int
+    converged: bool
+    gain_updates: int
+    sign_fixes: int
+    cost_increases: int
+    seconds: float
+
+
+def initial_state(n_poses: int) -> GreedyState:
+    """Sec. 5, step 2: null biases, unit gains and rotations, h = (1, 0, 1), g_z = −1."""
+    q = np.zeros((n_poses, 4))
+    q[:, 0] = 1.0
+    return GreedyState(np.eye(3), np.zeros(3), -1.0, np.eye(3), np.zeros(3), 1.0, 1.0, q)
+
+
+# --------------------------------------------------------------------------- Eq. 8 and 9
+def _pose_costs_from_body(
+    state: GreedyState, data: Data, body_g: Array, body_h: Array
+) -> tuple[Array, Array, Array]:
+    """Eq. 9 per pose given ``R_i g`` and ``R_i h``; also the two residuals ``r_s``."""
+    r_a = body_g @ state.accel_gain.T + state.accel_bias - data.mean_a
+    r_m = body_h @ state.mag_gain.T + state.mag_bias - data.mean_m
+    J = data.count_a * np.einsum("ni,ij,nj->n", r_a, data.weight_a, r_a)
+    J += data.count_m * np.einsum("ni,ij,nj->n", r_m, data.weight_m, r_m)
+    return J, r_a, r_m
+
+
+def pose_costs(state: GreedyState, data: Data, quaternions: Array | None = None) -> Array:
+    """Eq. 9: ``J_i(R_i) = Σ_s Δ_s[i] rᵀ Σ̂_s⁻¹ r``, ``r = K_s R_i f_s + b_s − μ̂_s[i]``."""
+    q = state.quaternions if quaternions is None else quaternions
+    R = quaternion_to_matrix(q)
+    return _pose_costs_from_body(state, data, R @ state.gravity, R @ state.magnetic)[0]
+
+
+def cost(state: GreedyState, data: Data) -> float:
+    """Eq. 8: the sum over poses of Eq. 9."""
+    return float(pose_costs(state, data).sum())
+
+
+def _rotation_derivatives(q: Array) -> Array:
+    """``∂R/∂q_k`` (N, 4, 3, 3) of ``R(q) = (w² − v·v) I + 2 v vᵀ + 2 w [v]×``.
+
+    That quadratic form equals the rotation matrix on the unit sphere; projecting the gradient
+    on the sphere's tangent (:func:`_quaternion_gradient`) makes it the gradient of
+    ``J_i(R(q / |q|))``, the function the step actually moves on.
+    """
+    w, v = q[:, 0], q[:, 1:]
+    eye = np.eye(3)
+    skew_basis = np.array(  # [e_k]× for k = x, y, z
+        [
+            [[0, 0, 0], [0, 0, -1], [0, 1, 0]],
+            [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
+            [[0, -1, 0], [1, 0, 0], [0, 0, 0]],
+        ],
+        dtype=float,
+    )
+    skew_v = np.einsum("nk,kab->nab", v, skew_basis)
+    dR = np.empty((q.shape[0], 4, 3, 3))
+    dR[:, 0] = 2.0 * (w[:, None, None] * eye + skew_v)
+    outer = np.einsum("ka,nb->nkab", eye, v)  # e_k vᵀ
+    dR[:, 1:] = 2.0 * (
+        -v[:, :, None, None] * eye
+        + outer
+        + np.swapaxes(outer, -1, -2)
+        + w[:, None, None, None] * skew_basis
+    )
+    return dR
+
+
+def _quaternion_gradient(state: GreedyState, data: Data, q: Array) -> tuple[Array, Array]:
+    """Eq. 9 and its analytic gradient on the unit sphere of quaternions, for all poses.
+
+    ``∂J_i/∂R = Σ_s 2 Δ_s[i] K_sᵀ Σ̂_s⁻¹ r_s f_sᵀ``; chained through ``∂R/∂q_k`` and projected
+    on the tangent plane ``q⊥`` (the normalisation ``q / |q|`` removes the radial part).
+    """
+    R = quaternion_to_matrix(q)
+    body_g, body_h = R @ state.gravity, R @ state.magnetic
+    J, r_a, r_m = _pose_costs_from_body(state, data, body_g, body_h)
+    lever_a = 2.0 * data.count_a[:, None] * (r_a @ (data.weight_a @ state.accel_gain))
+    lever_m = 2.0 * data.count_m[:, None] * (r_m @ (data.weight_m @ state.mag_gain))
+    dJ_dR = np.einsum("na,b->nab", lever_a, state.gravity)
+    dJ_dR += np.einsum("na,b->nab", lever_m, state.magnetic)
+    grad = np.einsum("nkab,nab->nk", _rotation_derivatives(q), dJ_dR)
+    grad -= np.sum(grad * q, axis=1, keepdims=True) * q
+    return J, grad
+
+
+def _normalise(q: Array) -> Array:
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def rotation_step(
+    state: GreedyState, data: Data, tol: float = 1e-9, max_iterations: int = 200
+) -> GreedyState:
+    """Sec. 4.1: minimise Eq. 9 over each pose's quaternion by gradient descent, all poses at once.
+
+    Steepest descent on the unit sphere from the current rotations (warm start), with a
+    per-pose Barzilai-Borwein step length and Armijo backtracking so every pose's Eq. 9 never
+    increases. A pose stops when one step lowers its Eq. 9 by no more than ``tol (1 + J_i)``.
+    Poses are independent (Eq. 9), so all are evaluated together and only the active ones move:
+    with N <= 30 one batched evaluation is cheaper than indexing out the active subset.
+    """
+    q = state.quaternions.copy()
+    J, grad = _quaternion_gradient(state, data, q)
+    step = _initial_step(state, data) * np.ones(q.shape[0])
+    active = np.ones(q.shape[0], dtype=bool)
+    for _ in range(max_iterations):
+        q_new, J_new, t = _armijo(state, data, q, J, grad, step, active)
+        _, grad_new = _quaternion_gradient(state, data, q_new)
+        s, y = q_new - q, grad_new - grad
+        sy = np.sum(s * s, axis=1), np.sum(s * y, axis=1)
+        # BB1 step s·s / s·y where the curvature is positive; otherwise double the last step.
+        bb = np.where(sy[1] > 0, sy[0] / np.where(sy[1] > 0, sy[1], 1.0), 2.0 * t)
+        step = np.where(active, bb, step)
+        still = J - J_new > tol * (1.0 + J_new)
+        q, grad = np.where(active[:, None], q_new, q), np.where(active[:, None], grad_new, grad)
+        J = np.where(active, J_new, J)
+        active &= still
+        if not active.any():
+            break
+    return dataclasses.replace(state, quaternions=q)
+
+
+def _initial_step(state: GreedyState, data: Data) -> Array:
+    """A first step length of the order of 1 / curvature of Eq. 9 in the quaternion."""
+    curv_a = np.linalg.eigvalsh(state.accel_gain.T @ data.weight_a @ state.accel_gain)[-1]
+    curv_m = np.linalg.eigvalsh(state.mag_gain.T @ data.weight_m @ state.mag_gain)[-1]
+    curvature = 8.0 * (
+        data.count_a * curv_a * state.g_z**2 + data.count_m * curv_m * (state.h_x**2 + state.h_z**2)
+    )
+    return 1.0 / curvature
+
+
+def _armijo(
+    state: GreedyState,
+    data: Data,
+    q: Array,
+    J: Array,
+    grad: Array,
+    step: Array,
+    active: Array,
+) -> tuple[Array, Array, Array]:
+    """Backtrack each active pose's step until Eq. 9 drops by 1e-4 · t |∇|² (Armijo)."""
+    t = step.copy()
+    slope = np.sum(grad * grad, axis=1)
+    failed = active.copy()
+    q_new, J_new = q.copy(), J.copy()
+    for _ in range(60):
+        trial = _normalise(q - t[:, None] * grad)
+        J_trial = pose_costs(state, data, trial)
+        q_new[failed], J_new[failed] = trial[failed], J_trial[failed]
+        failed &= J_trial > J - 1e-4 * t * slope
+        if not failed.any():
+            break
+        t[failed] *= 0.5
+    # A pose whose step underflowed keeps its rotation: Eq. 9 must never increase.
+    q_new[failed], J_new[failed] = q[failed], J[failed]
+    return q_new, J_new, t
+
+
+# --------------------------------------------------------------------------- Eq. 13, 15
+def bias_field_step(state: GreedyState, data: Data) -> tuple[GreedyState, int]:
+    """Sec. 4.2-4.3: GLS for ``(g_z, b_a)`` (Eq. 13) and ``(h_x, h_z, b_m)`` (Eq. 15).
+
+    Then the sign fix of Sec. 4.2 (a wrong sign of ``g_z`` or ``h_x`` is flipped, nothing
+    else changes) and the scale constraints of Sec. 4.3: ``K_a ← |g_z| K_a``, ``g_z = −1``;
+    ``K_m ← |h_x| K_m``, ``h_z ← h_z / |h_x|``, ``h_x = 1``. Returns the state and the
+    number of signs fixed.
+    """
+    R = state.rotations
+    g_z, *b_a = gls(accel_bias_field_design(state.accel_gain, R), data.mean_a, data.weight_a,
+                    data.count_a)  # fmt: skip
+    h_x, h_z, *b_m = gls(mag_bias_field_design(state.mag_gain, R), data.mean_m, data.weight_m,
+                         data.count_m)  # fmt: skip
+    fixes = int(g_z > 0) + int(h_x < 0)
+    return (
+        dataclasses.replace(
+            state,
+            accel_gain=abs(g_z) * state.accel_gain,
+            accel_bias=np.array(b_a),
+            g_z=-1.0,
+            mag_gain=abs(h_x) * state.mag_gain,
+            mag_bias=np.array(b_m),
+            h_x=1.0,
+            h_z=h_z / abs(h_x),
+        ),
+        fixes,
+    )
+
+
+# --------------------------------------------------------------------------- Eq. 16, 17
+def gain_step(state: GreedyState, data: Data) -> GreedyState:
+    """Sec. 4.4: GLS for the symmetric ``K_a`` (Eq. 16) and the full ``K_m`` (Eq. 17)."""
+    R = state.rotations
+    beta_a = gls(
+        accel_gain_design(R @ state.gravity),
+        data.mean_a - state.accel_bias,
+        data.weight_a,
+        data.count_a,
+    )
+    beta_m = gls(
+        mag_gain_design(R @ state.magnetic),
+        data.mean_m - state.mag_bias,
+        data.weight_m,
+        data.count_m,
+    )
+    return dataclasses.replace(
+        state, accel_gain=symmetric_from_vector(beta_a), mag_gain=beta_m.reshape(3, 3)
+    )
+
+
+# --------------------------------------------------------------------------- Sec. 5
+def run_greedy(
+    stats: PoseStats,
+    gamma: float = 1e-4,
+    max_iterations: int = DEFAULTS["max_iterations"],
+    callback: Callable[[int, float, GreedyState, float], None] | None = None,
+    *,
+    rotation_tol: float = DEFAULTS["rotation_tol"],
+    rotation_max_iterations: int = DEFAULTS["rotation_max_iterations"],
+) -> GreedyResult:
+    """The algorithm of Sec. 5 in the paper's gauge, for any number of poses.
+
+    ``stats`` must hold both sensors with a covariance each. ``callback(k, J[k], state,
+    seconds)`` is called after step 2 (``k = 0``) and after every iteration, with the seconds
+    elapsed since the start; the algorithm is deterministic and only its stopping rule depends
+    on ``γ``, so one run with a small ``γ`` and a callback gives the result for every larger
+    ``γ``.
+    """
+    data = Data.from_stats(stats)
+    start = time.perf_counter()
+    state = initial_state(stats.n_poses)
+    costs = [cost(state, data)]
+    if callback is not None:
+        callback(0, costs[0], state, time.perf_counter() - start)
+    gain_updates = sign_fixes = increases = 0
+    converged = False
+    k = 0
+    while k < max_iterations:
+        k += 1
+        h_z_before = state.h_z
+        state = rotation_step(state, data, rotation_tol, rotation_max_iterations)  # step 3
+        state, fixes = bias_field_step(state, data)  # step 4
+        sign_fixes += fixes
+        if abs(state.h_z - h_z_before) < GAIN_TRIGGER:  # step 5
+            state = gain_step(state, data)
+            gain_updates += 1
+        costs.append(cost(state, data))  # step 6
+        increases += costs[-1] > costs[-2]
+        if callback is not None:
+            callback(k, costs[-1], state, time.perf_counter() - start)
+        if costs[-2] - costs[-1] <= gamma:  # step 7
+            converged = True
+            break
+    return GreedyResult(
+        state=state,
+        costs=costs,
+        iterations=k,
+        converged=converged,
+        gain_updates=gain_updates,
+        sign_fixes=sign_fixes,
+        cost_increases=int(increases),
+        seconds=time.perf_counter() - start,
+    )
+
+
+# --------------------------------------------------------------------------- public fit
+_M = np.diag([1.0, -1.0, -1.0])  # half turn about the world x axis: M g = −g, M h = (h_x, 0, −h_z)
+
+
+def to_fieldcal_gauge(state: GreedyState, body_frame: str = "accel") -> tuple[Array, ...]:
+    """Re-express the paper's gauge in fieldcal's: unit fields, SPD gain for ``body_frame``.
+
+    Sec. 4.3 only makes ``K_a`` symmetric (``U = diag(±1, ±1, ±1)``). A symmetric ``K_a`` with
+    ``det < 0`` is exactly equivalent to ``−K_a`` (``det > 0``) with every ``R_i`` followed by a
+    half turn ``M`` about the world x axis and ``h_z → −h_z``: ``(−K_a) R_i M g = K_a R_i g``
+    and ``K_m R_i M (M h) = K_m R_i h``. After that flip :func:`canonical_gauge` moves the
+    remaining rotation (``det U = +1``) into the ``R_i`` and folds ``|h|`` into ``K_m``.
+    Returns ``(rotations, accel_gain, mag_gain, gravity, magnetic, flipped)``.
+    """
+    R, Ka, h = state.rotations, state.accel_gain, state.magnetic
+    flipped = bool(np.linalg.det(Ka) < 0)
+    if flipped:
+        R, Ka, h = R @ _M, -Ka, _M @ h
+    out = canonical_gauge(R, Ka, state.mag_gain, state.gravity, h, body_frame)
+    return (*out, flipped)
+
+
+def _check(stats: PoseStats, noise_sources: dict, options: dict[str, Any]) -> dict[str, Any]:
+    unknown = set(options) - set(DEFAULTS)
+    if unknown:
+        raise ValueError(
+            f"unknown option(s) for method='greedy': {sorted(unknown)}; known: {sorted(DEFAULTS)}"
+        )
+    if stats is None or stats.accel is None or stats.mag is None:
+        raise ValueError(
+            "method='greedy' needs both accelerometer and magnetometer poses; "
+            "use method='mle' to calibrate one sensor"
+        )
+    for name in ("accel", "mag"):
+        if getattr(stats, name).cov is None and noise_sources.get(name) != "user":
+            raise ValueError(
+                f"{name}: one sample per pose gives no within-pose scatter (Eq. 7); record "
+                "several samples per pose or pass noise=... (the sample's standard deviation)"
+            )
+    used = {**DEFAULTS, **options}
+    if not used["gamma"] > 0:
+        raise ValueError(f"gamma must be positive, got {used['gamma']!r}")
+    if int(used["max_iterations"]) < 1:
+        raise ValueError("max_iterations must be at least 1")
+    return {
+        "gamma": float(used["gamma"]),
+        "max_iterations": int(used["max_iterations"]),
+        "rotation_tol": float(used["rotation_tol"]),
+        "rotation_max_iterations": int(used["rotation_max_iterations"]),
+    }
+
+
+def fit(
+    stats: PoseStats,
+    *,
+    raw_accel: Any = None,
+    raw_mag: Any = None,
+    body_frame: str = "accel",
+    noise_sources: dict | None = None,
+    **options: Any,
+) -> Calibration:
+    """Calibrate both sensors with the greedy algorithm of Sec. 5.
+
+    Options: ``gamma`` (stop when ``J[k−1] − J[k] <= γ``, default 1e-4 as in Table 1),
+    ``max_iterations`` (cap on Sec. 5 iterations), ``rotation_tol`` and
+    ``rotation_max_iterations`` (the gradient descent of Sec. 4.1). The result is expressed in
+    fieldcal's gauge; ``cost`` is Eq. 8 at the end. No uncertainty is given.
+    """
+    noise_sources = dict(noise_sources or {})
+    used = _check(stats, noise_sources, options)
+    result = run_greedy(
+        stats,
+        used["gamma"],
+        used["max_iterations"],
+        rotation_tol=used["rotation_tol"],
+        rotation_max_iterations=used["rotation_max_iterations"],
+    )
+    R, Ka, Km, g, h, flipped = to_fieldcal_gauge(result.state, body_frame)
+    if not result.converged:
+        warnings.warn(
+            f"greedy: stopped at the cap of {used['max_iterations']} iterations before "
+            f"J[k-1] - J[k] <= gamma; raise max_iterations or gamma, or use method='mle'",
+            stacklevel=3,
+        )
+    cal = Calibration(
+        accel=SensorCalibration(
+            Ka,
+            result.state.accel_bias,
+            stats.accel.cov,
+            noise_source=noise_sources.get("accel", "scatter"),
+        ),
+        mag=SensorCalibration(
+            Km,
+            result.state.mag_bias,
+            stats.mag.cov,
+            noise_source=noise_sources.get("mag", "scatter"),
+        ),
+        gravity=g,
+        magnetic=h,
+        rotations=R,
+        method="greedy",
+        iterations=result.iterations,
+        converged=result.converged,
+        options={
+            **used,
+            "gain_updates": result.gain_updates,
+            "sign_fixes": result.sign_fixes,
+            "cost_increases": result.cost_increases,
+            "accel_gain_flipped": flipped,
+        },
+    )
+    status = "converged" if result.converged else "iteration cap reached"
+    diagnostics = certify(cal, stats, dof=3 * stats.n_poses - 22, status=status)
+    return dataclasses.replace(
+        cal,
+        cost=diagnostics.statistic,
+        diagnostics=diagnostics,
+        poses=pose_table(diagnostics, stats),
+    )

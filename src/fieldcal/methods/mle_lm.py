@@ -1,0 +1,145 @@
+"""Levenberg-Marquardt on SO(3)^N × R^G with the pose blocks eliminated (Schur complement).
+
+Each pose's residuals depend on its own rotation (3 angles, 2 with one sensor) and on the G
+global parameters only, so the Gauss-Newton matrix is an arrow matrix::
+
+    [ U   W ]   U = blockdiag(U_i)  (N blocks of 3x3)
+    [ Wᵀ  V ]   V: G x G
+
+and the damped system is solved, as in bundle adjustment, through the reduced (Schur) system
+``S = V − Σ_i W_iᵀ U_i⁻¹ W_i`` of size G: O(N) work per iteration, all batched over poses.
+At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, see
+:mod:`.mle_uncertainty`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .mle_model import Problem, State, apply_step, jacobians, residuals, rotation_basis
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class Normal:
+    """Blocks of the Gauss-Newton system ``JᵀJ`` and gradient ``Jᵀe`` at one point."""
+
+    U: Array  # (N, p, p)
+    W: Array  # (N, p, G)
+    V: Array  # (G, G)
+    gp: Array  # (N, p)
+    gg: Array  # (G,)
+    Jp: Array
+    Jg: Array
+    basis: Array | None
+
+
+def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
+    basis = rotation_basis(problem, state)
+    Jp, Jg = jacobians(problem, state, basis)
+    G = problem.n_global
+    JpT = Jp.transpose(0, 2, 1)
+    flat = Jg.reshape(-1, G)
+    return Normal(
+        U=JpT @ Jp,
+        W=JpT @ Jg,
+        V=flat.T @ flat,
+        gp=(JpT @ e[:, :, None])[:, :, 0],
+        gg=flat.T @ e.ravel(),
+        Jp=Jp,
+        Jg=Jg,
+        basis=basis,
+    )
+
+
+def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array]:
+    """Damped pose blocks' inverses, ``U⁻¹W`` and the reduced matrix S (Schur complement)."""
+    p = ne.U.shape[1]
+    dU = np.einsum("nii->ni", ne.U)
+    Ud = ne.U + (lam * dU + 1e-12 * (1.0 + dU))[:, :, None] * np.eye(p)
+    Uinv = np.linalg.inv(Ud)
+    Y = Uinv @ ne.W
+    dV = np.diag(ne.V)
+    S = ne.V + np.diag(lam * dV + 1e-12 * (1.0 + dV))
+    G = ne.V.shape[0]
+    S -= ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
+    return Uinv, Y, S
+
+
+def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
+    """The damped step and the decrease of J it predicts (linearised model)."""
+    Uinv, Y, S = reduce(ne, lam)
+    G = ne.V.shape[0]
+    z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
+    rhs = -(ne.gg - ne.W.reshape(-1, G).T @ z.ravel())
+    dg = np.linalg.solve(S, rhs)
+    dp = -(z + (Y @ dg))
+    # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ, with H the undamped Gauss-Newton matrix
+    Hdp = (ne.U @ dp[:, :, None])[:, :, 0] + ne.W @ dg
+    Hdg = ne.V @ dg + ne.W.reshape(-1, G).T @ dp.ravel()
+    pred = -2.0 * (dg @ ne.gg + np.sum(dp * ne.gp)) - (dg @ Hdg + np.sum(dp * Hdp))
+    return dg, dp, float(pred)
+
+
+@dataclass
+class Result:
+    state: State
+    e: Array
+    cost: float
+    iterations: int
+    converged: bool
+
+
+def levenberg_marquardt(
+    problem: Problem,
+    state: State,
+    *,
+    max_iter: int = 100,
+    tol: float = 1e-10,
+    lam: float = 1e-4,
+) -> Result:
+    """Minimise Eq. 8's J from ``state``.
+
+    Stops when an accepted step lowers J by less than ``tol·(1 + J)``: with Gauss-Newton's
+    quadratic convergence the next step would change J by far less than anything
+    statistically meaningful (J is a χ² variate of size ~dof).
+    """
+    e = residuals(problem, state)
+    cost = float(np.sum(e * e))
+    nu = 2.0
+    converged = False
+    it = 0
+    ne = normal_equations(problem, state, e)
+    while it < max_iter:
+        it += 1
+        dg, dp, pred = solve_step(ne, lam)
+        if not np.all(np.isfinite(dg)) or not np.all(np.isfinite(dp)):
+            lam *= 10.0
+            continue
+        trial = apply_step(problem, state, dg, dp, ne.basis)
+        e_new = residuals(problem, trial)
+        cost_new = float(np.sum(e_new * e_new))
+        gain = cost - cost_new
+        rho = gain / pred if pred > 0 else -1.0
+        if rho > 0 and np.isfinite(cost_new):
+            state, e = trial, e_new
+            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+            cost = cost_new
+            if gain <= tol * (1.0 + cost) or cost < 1e-300:
+                converged = True
+                break
+            ne = normal_equations(problem, state, e)
+        else:
+            if pred <= tol * 1e-3 * (1.0 + cost) and lam < 1e-3:
+                converged = True  # the model predicts nothing left to gain
+                break
+            lam *= nu
+            nu *= 2.0
+            if lam > 1e16:
+                break
+    return Result(state, e, cost, it, converged)

@@ -1,0 +1,230 @@
+"""The joint problem of Eq. 8 as a least-squares problem: parameters, residuals, Jacobians.
+
+Whitened residual of sensor ``s`` in pose ``i`` (Eq. 6, 8)::
+
+    e_s[i] = sqrt(Δ_s[i]) L_s⁻¹ (K_s R_i f_s + b_s − μ̂_s[i]),     Σ_s = L_s L_sᵀ
+
+so that Eq. 8's ``J = Σ ‖e‖²`` (twice the usual least-squares cost ``½‖e‖²``).
+
+Parameters. The 22 globals (joint problem) are, in order: the frame sensor's symmetric gain
+(6 entries, Sec. 4.3), its bias (3), the other sensor's full gain (9), its bias (3) and the dip
+(1, radians); the accelerometer comes first whichever sensor fixes the frame. Rotations are
+updated multiplicatively, ``R_i ← exp(ω_i^) R_i`` (a perturbation in the body frame), 3 angles
+per pose. With one sensor the rotation about its field is unobservable: each pose then has
+2 angles, a basis of the plane orthogonal to ``R_i f``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..poses import PoseStats
+from ..rotations import exp_so3
+
+Array = NDArray[np.float64]
+
+SENSORS = ("accel", "mag")
+#: Entries (j, k) of a symmetric gain kept as parameters, row-major upper triangle.
+SYM_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+GRAVITY = np.array([0.0, 0.0, -1.0])
+
+
+def _sym_map() -> Array:
+    """(9, 6) matrix taking the 6 symmetric parameters to the row-major 3x3 gain."""
+    T = np.zeros((9, 6))
+    for p, (j, k) in enumerate(SYM_ENTRIES):
+        T[3 * j + k, p] = T[3 * k + j, p] = 1.0
+    return T
+
+
+SYM_MAP = _sym_map()
+# Levi-Civita symbol: (K hat(v))[a, k] = -Σ K[a, j] ε[j, k, l] v[l]
+_EPS = np.zeros((3, 3, 3))
+for _a, _b, _c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _EPS[_a, _b, _c], _EPS[_a, _c, _b] = 1.0, -1.0
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Whitened data and the parameter layout of one calibration problem."""
+
+    sensors: tuple[str, ...]
+    frame: str
+    n: int
+    linv: dict[str, Array]
+    sqrt_w: dict[str, Array]
+    mu_w: dict[str, Array]
+    gain_slice: dict[str, slice]
+    bias_slice: dict[str, slice]
+    dip_index: int | None
+    n_global: int
+
+    @property
+    def joint(self) -> bool:
+        return self.dip_index is not None
+
+    @property
+    def rot_dim(self) -> int:
+        return 3 if self.joint else 2
+
+    @property
+    def dof(self) -> int:
+        """Observations minus parameters: ``3N − 22`` joint, ``N − 9`` for one sensor."""
+        return 3 * len(self.sensors) * self.n - self.rot_dim * self.n - self.n_global
+
+    def symmetric(self, sensor: str) -> bool:
+        return sensor == self.frame
+
+
+@dataclass
+class State:
+    """Current estimate: gains, biases, dip (radians) and world→body rotations."""
+
+    gains: dict[str, Array]
+    biases: dict[str, Array]
+    dip: float
+    rotations: Array
+
+    def copy(self) -> State:
+        return State(
+            {k: v.copy() for k, v in self.gains.items()},
+            {k: v.copy() for k, v in self.biases.items()},
+            float(self.dip),
+            self.rotations.copy(),
+        )
+
+
+def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Problem:
+    """Whiten the pose means (Eq. 5) with the noise covariances (Eq. 7) and lay out parameters."""
+    sensors = tuple(s for s in SENSORS if getattr(stats, s) is not None)
+    if frame not in sensors:
+        frame = sensors[0]
+    linv, sqrt_w, mu_w, gs, bs = {}, {}, {}, {}, {}
+    offset = 0
+    for s in sensors:
+        st = getattr(stats, s)
+        L = np.linalg.cholesky(np.asarray(covs[s], dtype=float))
+        linv[s] = np.linalg.inv(L)
+        sqrt_w[s] = np.sqrt(np.asarray(st.counts, dtype=float))
+        mu_w[s] = st.means @ linv[s].T
+        size = 6 if s == frame else 9
+        gs[s] = slice(offset, offset + size)
+        bs[s] = slice(offset + size, offset + size + 3)
+        offset += size + 3
+    dip_index = offset if len(sensors) == 2 else None
+    n_global = offset + (1 if dip_index is not None else 0)
+    return Problem(
+        sensors, frame, stats.n_poses, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global
+    )
+
+
+def reweighted(problem: Problem, covs: dict[str, Array]) -> Problem:
+    """The same problem with other noise covariances (for the noise fixed point)."""
+    linv, mu_w = dict(problem.linv), dict(problem.mu_w)
+    for s, cov in covs.items():
+        old_L = np.linalg.inv(problem.linv[s])
+        means = problem.mu_w[s] @ old_L.T
+        linv[s] = np.linalg.inv(np.linalg.cholesky(cov))
+        mu_w[s] = means @ linv[s].T
+    return replace(problem, linv=linv, mu_w=mu_w)
+
+
+def field(problem: Problem, sensor: str, dip: float) -> Array:
+    """Reference field ``f_s`` in the world frame (Eq. 2 with unit magnitudes)."""
+    if sensor == "accel":
+        return GRAVITY
+    if problem.joint:
+        return np.array([np.cos(dip), 0.0, np.sin(dip)])
+    return np.array([1.0, 0.0, 0.0])  # magnetometer alone: its field defines north
+
+
+def residuals(problem: Problem, state: State) -> Array:
+    """Whitened residuals (N, 3·#sensors), accelerometer block first."""
+    out = []
+    for s in problem.sensors:
+        v = state.rotations @ field(problem, s, state.dip)
+        Kw = problem.linv[s] @ state.gains[s]
+        bw = problem.linv[s] @ state.biases[s]
+        out.append(problem.sqrt_w[s][:, None] * (v @ Kw.T + bw - problem.mu_w[s]))
+    return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
+
+
+def rotation_basis(problem: Problem, state: State) -> Array | None:
+    """(N, 3, 2) tangent basis orthogonal to ``R_i f`` for one-sensor problems, else None."""
+    if problem.joint:
+        return None
+    v = state.rotations @ field(problem, problem.sensors[0], state.dip)
+    helper = np.eye(3)[np.argmin(np.abs(v), axis=1)]
+    b1 = np.cross(v, helper)
+    b1 /= np.linalg.norm(b1, axis=1, keepdims=True)
+    b2 = np.cross(v, b1)
+    return np.stack([b1, b2], axis=-1)
+
+
+def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Array, Array]:
+    """Analytic Jacobians of :func:`residuals`: per-pose rotation block (N, m, 3 or 2) and
+    global block (N, m, G), with m = 3·#sensors rows per pose."""
+    n, G = problem.n, problem.n_global
+    m = 3 * len(problem.sensors)
+    Jp = np.empty((n, m, 3))
+    Jg = np.zeros((n, m, G))
+    for k, s in enumerate(problem.sensors):
+        rows = slice(3 * k, 3 * k + 3)
+        w = problem.sqrt_w[s]
+        f = field(problem, s, state.dip)
+        v = state.rotations @ f
+        Kw = problem.linv[s] @ state.gains[s]
+        # d(K exp(ω^) R f)/dω = −K hat(R f): written with ε to stay one matrix product
+        E = np.einsum("aj,jkl->akl", Kw, _EPS).reshape(9, 3)
+        Jp[:, rows, :] = w[:, None, None] * (v @ E.T).reshape(n, 3, 3)
+        # d(K v)/dK[j, k] = e_j v_k
+        JK = np.einsum("aj,nk->najk", problem.linv[s], w[:, None] * v).reshape(n * 3, 9)
+        if problem.symmetric(s):
+            JK = JK @ SYM_MAP
+        Jg[:, rows, problem.gain_slice[s]] = JK.reshape(n, 3, -1)
+        Jg[:, rows, problem.bias_slice[s]] = w[:, None, None] * problem.linv[s]
+        if s == "mag" and problem.joint:
+            dh = np.array([-np.sin(state.dip), 0.0, np.cos(state.dip)])
+            Jg[:, rows, problem.dip_index] = w[:, None] * ((state.rotations @ dh) @ Kw.T)
+    if basis is not None:
+        Jp = Jp @ basis
+    return Jp, Jg
+
+
+def pack(problem: Problem, state: State) -> Array:
+    """The global parameter vector of ``state`` (layout in the module docstring)."""
+    x = np.empty(problem.n_global)
+    for s in problem.sensors:
+        K = state.gains[s]
+        x[problem.gain_slice[s]] = (
+            [K[j, k] for j, k in SYM_ENTRIES] if problem.symmetric(s) else K.ravel()
+        )
+        x[problem.bias_slice[s]] = state.biases[s]
+    if problem.joint:
+        x[problem.dip_index] = state.dip
+    return x
+
+
+def apply_step(
+    problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None
+) -> State:
+    """Additive update of the globals, multiplicative ``exp(ω^) R_i`` update of the rotations."""
+    gains, biases = {}, {}
+    for s in problem.sensors:
+        d = dg[problem.gain_slice[s]]
+        dK = (SYM_MAP @ d).reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
+        gains[s] = state.gains[s] + dK
+        biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
+    dip = state.dip + (dg[problem.dip_index] if problem.joint else 0.0)
+    omega = dp if basis is None else np.einsum("nij,nj->ni", basis, dp)
+    return State(gains, biases, float(dip), exp_so3(omega) @ state.rotations)
+
+
+def sensor_costs(problem: Problem, e: Array) -> dict[str, float]:
+    """Each sensor's part of Eq. 8's J."""
+    return {
+        s: float(np.sum(e[:, 3 * k : 3 * k + 3] ** 2)) for k, s in enumerate(problem.sensors)
+    }

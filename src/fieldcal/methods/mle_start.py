@@ -1,0 +1,195 @@
+"""Closed-form starting points for the joint solve (no iteration, no luck).
+
+1. Per-sensor ellipsoid fit of the pose means (Eq. 5) in noise-whitened coordinates
+   ``y = L⁻¹ μ̂`` (where Eq. 6's noise is isotropic), weighted by ``Δ_i``: the quadric
+   ``(y − c)ᵀ M (y − c) = 1`` gives the bias and ``K Kᵀ = M⁻¹``; the symmetric square root is
+   directly the symmetric gain of Sec. 4.3. ``model`` chooses the ellipsoid family: ``"full"``
+   (9 parameters, regularised towards a sphere so that 8 poses still give one answer),
+   ``"axes"`` (axis-aligned, 6) or ``"sphere"`` (4).
+2. Both sensors' unit directions ``u_i`` (gravity) and ``v'_i`` (field, up to an unknown
+   orthogonal Q) keep a constant angle: ``u_iᵀ Q v'_i = −sin(dip)``. This is linear in
+   (Q, sin dip): solved by SVD, the best member of the two smallest singular vectors' pencil
+   is taken and projected onto O(3) (Q may be a reflection: mirrored magnetometer).
+3. Each pose's rotation from its two vectors (Wahba's problem, batched SVD).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..rotations import exp_so3, wahba
+from .mle_model import GRAVITY, Problem, State, field
+
+Array = NDArray[np.float64]
+
+
+def _sqrtm_spd(M: Array) -> tuple[Array, Array]:
+    """Symmetric square root of an SPD matrix and of its inverse."""
+    w, V = np.linalg.eigh(M)
+    w = np.maximum(w, 1e-300)
+    return (V * np.sqrt(w)) @ V.T, (V / np.sqrt(w)) @ V.T
+
+
+def ellipsoid(y: Array, weights: Array, model: str = "full") -> tuple[Array, Array] | None:
+    """Weighted algebraic fit; returns (symmetric gain K_y, centre) or None if not an ellipsoid."""
+    c0 = np.average(y, axis=0, weights=weights)
+    s0 = np.sqrt(np.average(np.sum((y - c0) ** 2, axis=1), weights=weights))
+    if not s0 > 0:
+        return None
+    z = (y - c0) / s0
+    x1, x2, x3 = z.T
+    one = np.ones(len(z))
+    if model == "full":
+        cols = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
+    elif model == "axes":
+        cols = [x1 * x1, x2 * x2, x3 * x3]
+    else:
+        cols = [x1 * x1 + x2 * x2 + x3 * x3]
+    D = np.stack([*cols, 2 * x1, 2 * x2, 2 * x3, one], axis=1) * np.sqrt(weights)[:, None]
+    D /= np.sqrt(np.sum(weights))
+    if model == "full":
+        # Tie-breaker when the poses do not determine all 9 parameters (N = 8): the member of
+        # the quadric pencil closest to a sphere. Weak enough to leave well-posed fits alone.
+        reg = np.zeros((5, 10))
+        reg[0, [0, 1]] = (1, -1)
+        reg[1, [1, 2]] = (1, -1)
+        reg[2, 3] = reg[3, 4] = reg[4, 5] = 1.0
+        D = np.vstack([D, 1e-4 * reg])
+    theta = np.linalg.svd(D, full_matrices=False)[2][-1]
+    if model == "full":
+        A = np.array(
+            [
+                [theta[0], theta[3], theta[4]],
+                [theta[3], theta[1], theta[5]],
+                [theta[4], theta[5], theta[2]],
+            ]
+        )
+    elif model == "axes":
+        A = np.diag(theta[:3])
+    else:
+        A = np.eye(3) * theta[0]
+    beta, gamma = theta[-4:-1], theta[-1]
+    try:
+        zc = -np.linalg.solve(A, beta)
+    except np.linalg.LinAlgError:
+        return None
+    k = zc @ A @ zc - gamma
+    M = A / k
+    if not np.all(np.isfinite(M)) or np.linalg.eigvalsh(M)[0] <= 0:
+        return None
+    _, K = _sqrtm_spd(M)
+    return s0 * K, c0 + s0 * zc
+
+
+def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
+    """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid."""
+    w = problem.sqrt_w[sensor] ** 2
+    fit = ellipsoid(problem.mu_w[sensor], w, model)
+    if fit is None:
+        return None
+    Ky, cy = fit
+    L = np.linalg.inv(problem.linv[sensor])
+    K = L @ Ky
+    # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
+    P, _ = _sqrtm_spd(K @ K.T)
+    return P, L @ cy
+
+
+def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
+    means = problem.mu_w[sensor] @ np.linalg.inv(problem.linv[sensor]).T
+    u = np.linalg.solve(K, (means - b).T).T
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
+    """Orthogonal Q and c with ``u_iᵀ Q v_i ≈ c`` for all poses (constant gravity-field angle)."""
+    rows = np.concatenate([np.einsum("ni,nj->nij", u, v).reshape(-1, 9), -np.ones((len(u), 1))], 1)
+    rows *= np.sqrt(weights)[:, None]
+    Vt = np.linalg.svd(rows, full_matrices=True)[2]
+    Z = Vt[-2:]  # smallest two: the pencil holding the answer even when N is small
+    phi = np.linspace(0.0, np.pi, 91)[:-1]
+    cand = np.cos(phi)[:, None] * Z[0] + np.sin(phi)[:, None] * Z[1]
+    Ms = cand[:, :9].reshape(-1, 3, 3)
+    Uq, _, Vq = np.linalg.svd(Ms)
+    Q = Uq @ Vq  # orthogonal polar factor, keeps the sign of det (reflections allowed)
+    proj = np.einsum("ni,kij,nj->kn", u, Q, v)
+    c = proj @ weights / np.sum(weights)
+    resid = ((proj - c[:, None]) ** 2) @ weights
+    best = int(np.argmin(resid))
+    return Q[best], float(np.clip(c[best], -1.0, 1.0))
+
+
+def min_rotations(f: Array, u: Array) -> Array:
+    """Smallest rotations taking the world vector ``f`` to each body direction ``u_i``."""
+    axis = np.cross(f, u)
+    s = np.linalg.norm(axis, axis=1)
+    c = u @ f
+    angle = np.arctan2(s, c)
+    helper = np.eye(3)[int(np.argmin(np.abs(f)))]
+    perp = np.cross(f, helper)
+    perp /= np.linalg.norm(perp)
+    axis = np.where(s[:, None] > 1e-12, axis / np.maximum(s, 1e-300)[:, None], perp)
+    return exp_so3(axis * angle[:, None])
+
+
+def closed_form_start(problem: Problem, model: str = "full") -> State | None:
+    """A full starting state, or None when an ellipsoid fit fails for this model."""
+    fits = {}
+    for s in problem.sensors:
+        fit = sensor_start(problem, s, model)
+        if fit is None:
+            return None
+        fits[s] = fit
+    if not problem.joint:
+        s = problem.sensors[0]
+        K, b = fits[s]
+        u = _directions(problem, s, K, b)
+        R = min_rotations(field(problem, s, 0.0), u)
+        return State({s: K}, {s: b}, 0.0, R)
+    (Ka, ba), (Km, bm) = fits["accel"], fits["mag"]
+    u = _directions(problem, "accel", Ka, ba)
+    vp = _directions(problem, "mag", Km, bm)
+    w = np.minimum(problem.sqrt_w["accel"], problem.sqrt_w["mag"]) ** 2
+    Q, c = align(u, vp, w)
+    dip = float(np.arcsin(-c))  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
+    v = vp @ Q.T
+    h = np.array([np.cos(dip), 0.0, np.sin(dip)])
+    world = np.stack([GRAVITY, h])
+    body = np.stack([u, v], axis=1)
+    R = wahba(body, np.broadcast_to(world, body.shape))
+    gains = {"accel": Ka, "mag": Km @ Q.T}
+    state = State(gains, {"accel": ba, "mag": bm}, dip, R)
+    return to_frame(problem, state)
+
+
+def to_frame(problem: Problem, state: State) -> State:
+    """Move the body frame to the one where ``problem.frame``'s gain is symmetric (Sec. 4.3)."""
+    s = problem.frame
+    K = state.gains[s]
+    if problem.joint and np.linalg.det(K) < 0:
+        state = flip_other(problem, state, other=s)
+        K = state.gains[s]
+    W, _, Vt = np.linalg.svd(K)
+    U = W @ Vt
+    state = state.copy()
+    for k in state.gains:
+        state.gains[k] = state.gains[k] @ U.T
+    state.gains[s] = 0.5 * (state.gains[s] + state.gains[s].T)
+    state.rotations = U @ state.rotations
+    return state
+
+
+def flip_other(problem: Problem, state: State, other: str) -> State:
+    """The exact twin of a joint solution: ``K → −K`` for one sensor, ``dip → −dip``.
+
+    ``K_m R h = (−K_m)(R R_z(π))h'`` with ``h'`` the field of dip ``−dip`` (and likewise for the
+    accelerometer with ``R_x(π)``), so the likelihood cannot choose: the magnetometer's
+    handedness relative to the accelerometer decides (see ``mle.py``).
+    """
+    T = np.diag([-1.0, -1.0, 1.0]) if other == "mag" else np.diag([1.0, -1.0, -1.0])
+    state = state.copy()
+    state.gains[other] = -state.gains[other]
+    state.dip = -state.dip
+    state.rotations = state.rotations @ T
+    return state

@@ -1,0 +1,285 @@
+"""From a :class:`~fieldcal.io.Log` to a calibration: poses (labelled or detected), checks,
+``fieldcal.calibrate``, and the JSON document the ``calibrate`` command writes."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .api import MIN_POSES, calibrate
+from .errors import InputError
+from .io import Log
+from .model import Calibration, ParameterCovariance
+from .stillness import StillResult, detect_still
+
+__all__ = ["PoseSet", "calibrate_log", "document", "fold_axes", "parse_noise", "poses_from_log"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class PoseSet:
+    """Per-pose samples of each sensor and one entry per pose for the JSON and the summary."""
+
+    accel: list[Array] | None
+    mag: list[Array] | None
+    entries: list[dict[str, Any]]
+    detection: StillResult | None
+    rate: float | None
+
+    @property
+    def n(self) -> int:
+        return len(self.entries)
+
+
+def _rate(log: Log, rate: float | None) -> float | None:
+    if rate is not None:
+        if not (np.isfinite(rate) and rate > 0):
+            raise InputError(f"--rate must be a positive number of samples per second, got {rate}")
+        return float(rate)
+    if log.time is not None and log.n > 1:
+        step = float(np.median(np.diff(log.time)))
+        if step > 0:
+            return 1.0 / step
+    return None
+
+
+def _samples(value: float | None, default_seconds: float, default_samples: int, rate: float | None) -> int:
+    """A duration in seconds when the rate is known, else a number of samples."""
+    if value is None:
+        return int(round(default_seconds * rate)) if rate else default_samples
+    return int(round(value * rate)) if rate else int(round(value))
+
+
+def _label(value: Any) -> str:
+    if isinstance(value, (float, np.floating)) and float(value).is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def _grouped(log: Log) -> tuple[list[NDArray[np.int64]], list[str]]:
+    labels = np.asarray(log.pose)
+    if labels.dtype.kind == "f":
+        keep = np.isfinite(labels)
+    else:
+        text = np.char.strip(labels.astype(str))
+        keep = (text != "") & (np.char.lower(text) != "nan")
+        labels = text
+    rows = np.flatnonzero(keep)
+    if rows.size == 0:
+        raise InputError(f"{log.path}: the pose column {log.used['pose'][0]!r} has no labels")
+    values, first, inverse = np.unique(labels[rows], return_index=True, return_inverse=True)
+    order = np.argsort(first)  # poses in the order they first appear in the log
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    pose_of_row = rank[inverse]
+    sort = np.argsort(pose_of_row, kind="stable")
+    counts = np.bincount(pose_of_row, minlength=len(order))
+    groups = np.split(rows[sort], np.cumsum(counts)[:-1])
+    return groups, [_label(values[i]) for i in order]
+
+
+def poses_from_log(
+    log: Log,
+    *,
+    rate: float | None = None,
+    window: float | None = None,
+    min_still: float | None = None,
+    trim: float | None = None,
+    threshold: float | None = None,
+    factor: float = 3.0,
+) -> PoseSet:
+    """Group the log's rows by its pose column, or detect still intervals.
+
+    ``window``, ``min_still`` and ``trim`` are seconds when the rate is known (``rate`` or the
+    time column), otherwise samples; defaults 0.5 s / 25, 1 s / 50, a quarter window.
+    """
+    hz = _rate(log, rate)
+    detection = None
+    entries: list[dict[str, Any]] = []
+    if log.pose is not None:
+        groups, labels = _grouped(log)
+        for rows, label in zip(groups, labels, strict=True):
+            entries.append(
+                {
+                    "label": label,
+                    "start": int(log.index[rows[0]]),
+                    "stop": int(log.index[rows[-1]]) + 1,
+                }
+            )
+    else:
+        source = log.accel if log.accel is not None else log.mag
+        w = _samples(window, 0.5, 25, hz)
+        min_samples = _samples(min_still, 1.0, 50, hz)
+        detection = detect_still(
+            source,
+            log.gyro,
+            window=w,
+            min_samples=min_samples,
+            trim=None if trim is None else _samples(trim, 0.0, 0, hz),
+            threshold=threshold,
+            factor=factor,
+        )
+        if not detection.segments:
+            unit = f"{min_samples / hz:g} s" if hz else f"{min_samples} samples"
+            raise InputError(
+                f"{log.path}: no still interval of at least {unit} found (threshold "
+                f"{detection.threshold_std:.3g} per-axis std); try --still-threshold "
+                f"{3 * detection.threshold_std:.3g} or a shorter --min-still, or label poses with "
+                "--pose-col"
+            )
+        groups = [np.arange(s.start, s.stop) for s in detection.segments]
+        for s in detection.segments:
+            entries.append(
+                {"start": int(log.index[s.start]), "stop": int(log.index[s.stop - 1]) + 1}
+            )
+    for entry, rows in zip(entries, groups, strict=True):
+        entry["samples"] = len(rows)
+        ref = log.accel if log.accel is not None else log.mag
+        entry["std"] = float(np.sqrt(np.mean(ref[rows].var(axis=0)))) if len(rows) > 1 else None
+    return PoseSet(
+        accel=None if log.accel is None else [log.accel[r] for r in groups],
+        mag=None if log.mag is None else [log.mag[r] for r in groups],
+        entries=entries,
+        detection=detection,
+        rate=hz,
+    )
+
+
+def parse_noise(text: str | None) -> Any:
+    """``"0.01"`` -> 0.01 for both sensors; ``"accel=0.01,mag=0.2"`` -> a per-sensor dict."""
+    if text is None:
+        return None
+    try:
+        if "=" not in text:
+            value = float(text)
+            if not value > 0:
+                raise ValueError
+            return value
+        out = {}
+        for part in text.split(","):
+            key, _, value = part.partition("=")
+            key = key.strip().lower()
+            if key not in ("accel", "mag") or not float(value) > 0:
+                raise ValueError
+            out[key] = float(value)
+        return out
+    except ValueError:
+        raise InputError(
+            f"--noise {text!r} is not understood; give one positive standard deviation of a raw "
+            "sample (e.g. 0.01) or per sensor, e.g. accel=0.01,mag=0.2"
+        ) from None
+
+
+def _check_poses(poses: PoseSet, method: str) -> None:
+    n = poses.n
+    if method != "ellipsoid" and n < MIN_POSES:
+        raise InputError(
+            f"{n} pose(s) found; the {method} method needs at least {MIN_POSES} (the 6N readings "
+            f"must outnumber the 3N pose angles plus 22 sensor parameters): hold the device still "
+            f"in {MIN_POSES - n} or more further orientations"
+        )
+    for name in ("accel", "mag"):
+        samples = getattr(poses, name)
+        if samples is None:
+            continue
+        means = np.array([p.mean(axis=0) for p in samples])
+        centred = means - means.mean(axis=0)
+        _, s, vt = np.linalg.svd(centred, full_matrices=False)
+        if s[0] == 0 or s[-1] / s[0] < 0.05:
+            axis = vt[-1] * np.sign(vt[-1][np.argmax(np.abs(vt[-1]))])
+            raise InputError(
+                f"the {n} poses only turn the device about one axis ({name} readings lie in a "
+                f"plane normal to ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f}) in sensor "
+                "axes), so they cannot determine the calibration; add poses with that axis "
+                "tilted up and down"
+            )
+
+
+def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
+    """Express a magnetometer calibration fitted on ``P @ raw`` in terms of the raw columns.
+
+    ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
+    ``Pᵀ b``, so firmware applies the result to the readings as logged.
+    """
+    mag = cal.mag
+    if mag is None:
+        return cal
+    Pt, A = P.T, np.abs(P.T)
+    new = dataclasses.replace(
+        mag,
+        gain=Pt @ mag.gain,
+        bias=Pt @ mag.bias,
+        noise_cov=Pt @ mag.noise_cov @ P,
+        gain_std=None if mag.gain_std is None else A @ mag.gain_std,
+        bias_std=None if mag.bias_std is None else A @ mag.bias_std,
+        noise_cov_std=None if mag.noise_cov_std is None else A @ mag.noise_cov_std @ A.T,
+    )
+    covariance = cal.covariance
+    if covariance is not None:
+        names = list(covariance.names)
+        T = np.eye(len(names))
+        # raw parameter (i, ...) = Σ_k Pᵀ[i, k] · fitted parameter (k, ...), per gain column
+        triples = [[f"mag.gain[{r},{j}]" for r in range(3)] for j in range(3)]
+        triples.append([f"mag.bias[{r}]" for r in range(3)])
+        for triple in triples:
+            if all(t in names for t in triple):
+                idx = [names.index(t) for t in triple]
+                T[np.ix_(idx, idx)] = Pt
+        covariance = ParameterCovariance(covariance.names, T @ covariance.matrix @ T.T)
+    options = {**cal.options, "mag_axes": spec}
+    return dataclasses.replace(cal, mag=new, covariance=covariance, options=options)
+
+
+def calibrate_log(
+    log: Log,
+    poses: PoseSet,
+    *,
+    method: str = "mle",
+    gravity: float | None = None,
+    field_strength: float | None = None,
+    noise: Any = None,
+    mag_axes: str | None = None,
+    P: Array | None = None,
+) -> Calibration:
+    """Calibrate from the poses and attach each pose's log position to ``cal.poses``.
+
+    ``P`` is the parsed ``mag_axes`` map, already applied to ``log.mag``; it is folded back so
+    the calibration applies to the raw columns.
+    """
+    _check_poses(poses, method)
+    try:
+        cal = calibrate(
+            poses.accel,
+            poses.mag,
+            method=method,
+            gravity=gravity,
+            field_strength=field_strength,
+            noise=noise,
+        )
+    except np.linalg.LinAlgError as exc:
+        raise InputError(
+            f"the poses cannot determine the calibration ({exc}); add orientations with each "
+            "axis pointing up and down"
+        ) from None
+    if P is not None and mag_axes is not None:
+        cal = fold_axes(cal, P, mag_axes)
+    rows = []
+    for i, entry in enumerate(poses.entries):
+        fit = dict(cal.poses[i]) if i < len(cal.poses) else {"index": i}
+        fit.update(entry)
+        rows.append(fit)
+    options = {**cal.options, "log": log.path, "columns": log.used}
+    return dataclasses.replace(cal, poses=tuple(rows), options=options)
+
+
+def document(cal: Calibration, poses: PoseSet) -> dict[str, Any]:
+    """The calibration JSON with the still detection's parameters (``still_detection``)."""
+    doc = cal.to_dict()
+    if poses.detection is not None:
+        doc["still_detection"] = {**poses.detection.to_dict(), "rate_hz": poses.rate}
+    return doc

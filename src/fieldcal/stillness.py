@@ -1,0 +1,218 @@
+"""Still-pose detection in a continuous log.
+
+Algorithm (all vectorised; cumulative sums give every moving-window statistic in O(n)):
+
+1. Moving variance of the accelerometer over a centred window of ``window`` samples (the sum of
+   the three axes' variances), and, when a gyroscope is present, the moving mean of
+   ``|ω − ω_bias|²`` (variance plus squared mean rate, so a steady rotation that leaves the
+   accelerometer quiet, as about a vertical axis, still counts as motion).
+2. The noise floor is a low quantile (``floor_quantile``, 10 %) of those statistics: in a
+   calibration log a good part of the time is spent still, so the quietest tenth of the windows
+   shows the sensor's own noise. The threshold is ``factor²`` times that floor (``factor`` is
+   a ratio of standard deviations, 3 by default).
+3. Runs of windows under the threshold are still intervals; ``trim`` samples are cut at each
+   end (the hand settles or starts to move there), and runs shorter than ``min_samples`` are
+   dropped.
+4. Adjacent intervals of one pose are merged: a short gap (at most ``max_gap`` samples, e.g.
+   a tap on the table) between intervals whose mean readings agree within ``merge_sigma``
+   standard errors of the noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import InputError
+
+__all__ = ["Segment", "StillResult", "detect_still", "moving_variance"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A still interval: samples ``start`` to ``stop`` (exclusive) of the log as given."""
+
+    start: int
+    stop: int
+    std: float
+    mean: tuple[float, float, float]
+
+    @property
+    def samples(self) -> int:
+        return self.stop - self.start
+
+
+@dataclass(frozen=True)
+class StillResult:
+    """Detected segments and the parameters that found them (for the summary and the JSON)."""
+
+    segments: tuple[Segment, ...]
+    threshold: float
+    noise_floor: float
+    window: int
+    min_samples: int
+    trim: int
+
+    @property
+    def threshold_std(self) -> float:
+        """The threshold as a standard deviation per axis (same units as the readings)."""
+        return float(np.sqrt(self.threshold / 3.0))
+
+    def to_dict(self) -> dict:
+        return {
+            "count": len(self.segments),
+            "threshold_var": self.threshold,
+            "threshold_std": self.threshold_std,
+            "noise_floor_var": self.noise_floor,
+            "window": self.window,
+            "min_samples": self.min_samples,
+            "trim": self.trim,
+        }
+
+
+def _windows(n: int, window: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    half = window // 2
+    centre = np.arange(n)
+    return np.clip(centre - half, 0, n), np.clip(centre + half + 1, 0, n)
+
+
+def moving_variance(x: Array, window: int) -> Array:
+    """Sum over columns of the variance in a centred window (truncated at the ends), O(n)."""
+    x = np.asarray(x, dtype=float)
+    x = x - x.mean(axis=0)  # centring keeps the cumulative sums from losing precision
+    lo, hi = _windows(len(x), window)
+    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x * x, axis=0)])
+    count = (hi - lo)[:, None]
+    mean = (c1[hi] - c1[lo]) / count
+    var = (c2[hi] - c2[lo]) / count - mean**2
+    return np.maximum(var, 0.0).sum(axis=1)
+
+
+def _moving_mean(x: Array, window: int) -> Array:
+    lo, hi = _windows(len(x), window)
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    return (c[hi] - c[lo]) / (hi - lo)
+
+
+def _floor(stat: Array, quantile: float, resolution: float) -> float:
+    # quantised sensors can show exactly zero variance in a window; the floor is at least the
+    # variance of rounding to the sensor's step (step² / 12 per axis)
+    return max(float(np.quantile(stat, quantile)), 3.0 * resolution**2 / 12.0, 1e-300)
+
+
+def _resolution(x: Array) -> float:
+    steps = np.abs(np.diff(x, axis=0)).ravel()
+    steps = steps[steps > 0]
+    return float(steps.min()) if steps.size else 0.0
+
+
+def _runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """(k, 2) start/stop (exclusive) of the runs of True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return np.column_stack([np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)])
+
+
+def detect_still(
+    accel: Array,
+    gyro: Array | None = None,
+    *,
+    window: int = 25,
+    min_samples: int = 50,
+    trim: int | None = None,
+    factor: float = 3.0,
+    threshold: float | None = None,
+    floor_quantile: float = 0.1,
+    max_gap: int | None = None,
+    merge_sigma: float = 5.0,
+) -> StillResult:
+    """Find the intervals in which the device rests.
+
+    Parameters
+    ----------
+    accel : (n, 3) array
+        Accelerometer samples (any units).
+    gyro : (n, 3) array, optional
+        Gyroscope samples; when given, a window must also be quiet in rotation.
+    window : int
+        Moving-window length in samples (made odd).
+    min_samples : int
+        Shortest still interval kept, after trimming.
+    trim : int, optional
+        Samples cut at each end of an interval (default a quarter window).
+    factor : float
+        Threshold as a multiple of the noise floor's standard deviation.
+    threshold : float, optional
+        Accelerometer threshold given directly, as a per-axis standard deviation in the
+        readings' units (overrides ``factor`` for the accelerometer).
+    floor_quantile : float
+        Quantile of the window statistics taken as the noise floor.
+    max_gap : int, optional
+        Longest gap bridged when merging adjacent intervals of one pose (default one window).
+    merge_sigma : float
+        Two intervals are one pose when their means differ by less than this many per-sample
+        noise standard deviations.
+    """
+    accel = np.asarray(accel, dtype=float)
+    n = len(accel)
+    window = max(3, int(window) | 1)
+    trim = window // 4 if trim is None else max(0, int(trim))
+    max_gap = window if max_gap is None else int(max_gap)
+    if n < window:
+        raise InputError(
+            f"the log has {n} samples, fewer than one detection window ({window}); record longer"
+        )
+
+    var_a = moving_variance(accel, window)
+    floor_a = _floor(var_a, floor_quantile, _resolution(accel))
+    thr_a = factor**2 * floor_a if threshold is None else 3.0 * float(threshold) ** 2
+    still = var_a < thr_a
+    if gyro is not None:
+        gyro = np.asarray(gyro, dtype=float)
+        # the gyro's bias is its median over the samples the accelerometer calls still
+        bias = np.median(gyro[still], axis=0) if np.any(still) else np.median(gyro, axis=0)
+        energy = _moving_mean(np.sum((gyro - bias) ** 2, axis=1), window)
+        floor_g = _floor(energy, floor_quantile, _resolution(gyro))
+        still &= energy < factor**2 * floor_g
+
+    runs = _runs(still)
+    runs[:, 0] += trim
+    runs[:, 1] -= trim
+    runs = runs[runs[:, 1] - runs[:, 0] >= max(1, min(min_samples, 3))]
+    segments = _merge(accel, runs, max_gap, merge_sigma * np.sqrt(floor_a / 3.0))
+    keep = segments[:, 1] - segments[:, 0] >= min_samples
+    segments = segments[keep]
+    return StillResult(
+        segments=tuple(_segment(accel, a, b) for a, b in segments),
+        threshold=float(thr_a),
+        noise_floor=float(floor_a),
+        window=window,
+        min_samples=int(min_samples),
+        trim=trim,
+    )
+
+
+def _merge(accel: Array, runs: NDArray[np.int64], max_gap: int, tol: float) -> NDArray[np.int64]:
+    """Join consecutive runs separated by a short gap and agreeing in their mean reading."""
+    if len(runs) < 2:
+        return runs
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(accel, axis=0)])
+    means = (c[runs[:, 1]] - c[runs[:, 0]]) / (runs[:, 1] - runs[:, 0])[:, None]
+    gap = runs[1:, 0] - runs[:-1, 1]
+    same = (gap <= max_gap) & (np.linalg.norm(np.diff(means, axis=0), axis=1) < tol)
+    # a new merged segment starts wherever the previous run is not "the same pose"
+    starts = np.concatenate([[True], ~same])
+    first = np.flatnonzero(starts)
+    last = np.concatenate([first[1:] - 1, [len(runs) - 1]])
+    return np.column_stack([runs[first, 0], runs[last, 1]])
+
+
+def _segment(accel: Array, start: int, stop: int) -> Segment:
+    part = accel[start:stop]
+    std = float(np.sqrt(np.mean(part.var(axis=0))))
+    mean = part.mean(axis=0)
+    return Segment(int(start), int(stop), std, (float(mean[0]), float(mean[1]), float(mean[2])))
