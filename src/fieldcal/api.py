@@ -124,6 +124,11 @@ def calibrate(
         isinstance(x, np.ndarray) and x.ndim == 2 for x in (accel, mag) if x is not None
     )
     if continuous:
+        if noise is not None:
+            raise ValueError(
+                "noise= needs per-pose input; with continuous samples the ellipsoid method "
+                "estimates the noise from its fit residuals (pass per-pose arrays instead)"
+            )
         stats, sources = None, {}
     else:
         stats = summarize(accel, mag)
@@ -144,14 +149,15 @@ def calibrate(
                 },
             )
         )
-    cal = _method(method)(
-        stats,
-        raw_accel=accel,
-        raw_mag=mag,
-        body_frame=body_frame,
-        noise_sources=sources,
-        **options,
-    )
+    fit = _method(method)
+    kwargs = {"raw_accel": accel, "raw_mag": mag, "body_frame": body_frame, **options}
+    if method in ("mle", "greedy") and "residuals" in sources.values():
+        # one sample per pose: no Eq. 7, the noise comes from the fit's residuals
+        from .noise import fit_with_residual_noise
+
+        cal = fit_with_residual_noise(fit, stats, sources, warm_start=method == "mle", **kwargs)
+    else:
+        cal = fit(stats, noise_sources=sources, **kwargs)
     if gravity is not None or field_strength is not None:
         cal = cal.with_field_magnitudes(gravity, field_strength)
     return cal

@@ -106,7 +106,9 @@ def _quadratic_terms(x: Array) -> Array:
     """Columns ``x², y², z², 2xy, 2xz, 2yz, 2x, 2y, 2z, 1`` in the order of Eq. 8."""
     X, Y, Z = x.T
     one = np.ones_like(X)
-    return np.stack([X * X, Y * Y, Z * Z, 2 * X * Y, 2 * X * Z, 2 * Y * Z, 2 * X, 2 * Y, 2 * Z, one], 1)
+    return np.stack(
+        [X * X, Y * Y, Z * Z, 2 * X * Y, 2 * X * Z, 2 * Y * Z, 2 * X, 2 * Y, 2 * Z, one], 1
+    )
 
 
 def _split(v: Array) -> tuple[Array, Array, float]:
@@ -147,13 +149,23 @@ def _from_normalised(center_n: Array, shape_n: Array, mean: Array, scale: float)
     return Quadric(v, center, kappa, shape)
 
 
-def _check_rank(design: Array, what: str) -> None:
-    s = np.linalg.svd(design, compute_uv=False)
-    if s[-1] <= s[0] * max(design.shape) * np.finfo(float).eps:
+def _check_rank(R: Array, what: str) -> None:
+    """Refuse a rank-deficient design, judged on the singular values of its R factor."""
+    s = np.linalg.svd(R, compute_uv=False)
+    if s[-1] <= s[0] * 1e3 * np.finfo(float).eps:
         raise ValueError(
             f"the points do not determine {what} (rank-deficient design matrix): they lie on a "
             "plane, a line or too few orientations; rotate the sensor through more orientations"
         )
+
+
+def _lstsq_qr(A: Array, b: Array, what: str) -> Array:
+    """Least squares by one thin QR of ``[A | b]``: stable (no normal equations) and fast for
+    tall A, and the triangular factor also serves the rank check."""
+    R = np.linalg.qr(np.column_stack([A, b]), mode="r")
+    k = A.shape[1]
+    _check_rank(R[:k, :k], what)
+    return np.linalg.solve(R[:k, :k], R[:k, k])
 
 
 # --------------------------------------------------------------------------- fits
@@ -188,11 +200,12 @@ def algebraic_fit(
         x = (x - mean) / scale
     q = _quadratic_terms(x)
     d2 = q[:, 0] + q[:, 1] + q[:, 2]
-    D = np.column_stack([q[:, 0] + q[:, 1] - 2 * q[:, 2], q[:, 0] + q[:, 2] - 2 * q[:, 1], q[:, 3:]])
+    D = np.column_stack(
+        [q[:, 0] + q[:, 1] - 2 * q[:, 2], q[:, 0] + q[:, 2] - 2 * q[:, 1], q[:, 3:]]
+    )
     sw = np.sqrt(w)
     if conditioned:
-        _check_rank(D * sw[:, None], "an ellipsoid")
-        u = np.linalg.lstsq(D * sw[:, None], d2 * sw, rcond=None)[0]
+        u = _lstsq_qr(D * sw[:, None], d2 * sw, "an ellipsoid")
     else:
         Dw = D * w[:, None]
         u = np.linalg.solve(Dw.T @ D, Dw.T @ d2)  # the seed's normal equations, as published
@@ -224,7 +237,7 @@ def li_griffiths_fit(points: ArrayLike, weights: ArrayLike | None = None) -> Qua
     x, w = _check_points(points, weights)
     mean, scale = _normalisation(x, w)
     D = _quadratic_terms((x - mean) / scale) * np.sqrt(w)[:, None]
-    _check_rank(D[:, :9], "an ellipsoid")
+    _check_rank(np.linalg.qr(D[:, :9], mode="r"), "an ellipsoid")
     quad, lin = D[:, :6], D[:, 6:]
     Q, _ = np.linalg.qr(lin)
     reduced = quad - Q @ (Q.T @ quad)  # quadratic columns orthogonal to the linear ones
@@ -233,7 +246,9 @@ def li_griffiths_fit(points: ArrayLike, weights: ArrayLike | None = None) -> Qua
     eigvecs = np.real(eigvecs[:, np.abs(np.imag(eigvals)) < 1e-9 * (1 + np.abs(eigvals))])
     c_norm = np.einsum("ik,ij,jk->k", eigvecs, _LG_CONSTRAINT, eigvecs)
     if not np.any(c_norm > 0):
-        raise ValueError("no ellipsoid fits these points; rotate the sensor through more orientations")
+        raise ValueError(
+            "no ellipsoid fits these points; rotate the sensor through more orientations"
+        )
     candidates = eigvecs[:, c_norm > 0] / np.sqrt(c_norm[c_norm > 0])
     cost = np.einsum("ik,ij,jk->k", candidates, S, candidates)
     v_quad = candidates[:, int(np.argmin(cost))]
@@ -263,7 +278,9 @@ def reverse_triangular_factor(M: ArrayLike) -> Array:
         b = (D - d * e) / c
         a = np.sqrt(A - b**2 - d**2)
     zero = np.zeros_like(a)
-    return np.stack([np.stack([a, zero, zero], -1), np.stack([b, c, zero], -1), np.stack([d, e, f], -1)], -2)
+    return np.stack(
+        [np.stack([a, zero, zero], -1), np.stack([b, c, zero], -1), np.stack([d, e, f], -1)], -2
+    )
 
 
 def ellipsoid_radii(shape: ArrayLike) -> Array:

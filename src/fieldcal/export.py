@@ -37,7 +37,13 @@ def _sensors(cal: Calibration) -> list[tuple[str, np.ndarray, np.ndarray]]:
 
 
 def _num(x: float) -> str:
+    """9 significant digits: every float32 exactly (the C header's type)."""
     return f"{float(x):.9g}"
+
+
+def _exact(x: float) -> str:
+    """The shortest text that reads back as the same double (MATLAB, Magneto)."""
+    return repr(float(x))
 
 
 def _provenance(cal: Calibration) -> list[str]:
@@ -96,7 +102,7 @@ def c_header(cal: Calibration) -> str:
 
 
 def _matlab_matrix(M: np.ndarray) -> str:
-    return "[" + "; ".join(" ".join(_num(v) for v in row) for row in np.atleast_2d(M)) + "]"
+    return "[" + "; ".join(" ".join(_exact(v) for v in row) for row in np.atleast_2d(M)) + "]"
 
 
 def matlab(cal: Calibration) -> str:
@@ -119,10 +125,10 @@ def magneto(cal: Calibration) -> str:
     lines = [f"# {text}" for text in ["Sensor calibration written by fieldcal.", *_provenance(cal)]]
     lines.append("# Magneto convention: h_calibrated = A^-1 * (h - b), h a column vector.")
     for name, M, b in _sensors(cal):
-        lines += ["", f"[{_NAMES[name]}]", "Combined bias (b):", "  ".join(f"{v:15.9g}" for v in b)]
+        lines += ["", f"[{_NAMES[name]}]", "Combined bias (b):", "  ".join(f"{_exact(v):>22}" for v in b)]
         lines.append("")
         lines.append("Correction for combined scale factors, misalignments and soft iron (A^-1):")
-        lines += ["  ".join(f"{v:15.9g}" for v in row) for row in M]
+        lines += ["  ".join(f"{_exact(v):>22}" for v in row) for row in M]
     return "\n".join(lines) + "\n"
 
 

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from ..diagnostics import certify, pose_table
 from ..ellipsoid_fit import (
@@ -49,6 +50,7 @@ from ..poses import PoseStats
 from ..rotations import exp_so3, project_to_so3, quaternion_to_matrix, rotation_angle_deg, wahba
 
 __all__ = [
+    "MIN_POSES",
     "MIN_SAMPLES",
     "Alignment",
     "AlignmentError",
@@ -70,7 +72,7 @@ MIN_SAMPLES = 10
 #: determined by the noise alone.
 MIN_POSES = 9
 
-_OPTIONS = ("faithful", "inclination_deg")
+_OPTIONS = ("faithful", "inclination_deg", "fit_on")
 
 
 class NotAnEllipsoidWarning(RuntimeWarning):
@@ -134,23 +136,30 @@ class EllipsoidFit:
         return (np.asarray(raw, dtype=float) - self.center) @ self.correction.T
 
 
-def _check_samples(samples: ArrayLike, name: str, minimum: int = MIN_SAMPLES) -> Array:
+def _check_samples(
+    samples: ArrayLike,
+    name: str,
+    minimum: int = MIN_SAMPLES,
+    why: str = "the ellipsoid of Eq. 8 has 9 free parameters, and one more leaves a residual "
+    "for the noise",
+) -> Array:
     x = np.asarray(samples, dtype=float)
     if x.ndim != 2 or x.shape[1] != 3:
         raise ValueError(f"{name}: expected an (n, 3) array of x, y, z readings, got {x.shape}")
     if x.shape[0] < minimum:
         raise ValueError(
-            f"{name}: {x.shape[0]} samples given; at least {minimum} are needed (the ellipsoid "
-            "of Eq. 8 has 9 free parameters, and one more leaves a residual for the noise)"
+            f"{name}: {x.shape[0]} samples given; at least {minimum} are needed ({why})"
         )
     if not np.all(np.isfinite(x)):
         raise ValueError(f"{name}: NaN or inf readings; remove those samples before calibrating")
     return x
 
 
-def _ellipsoid_quadric(x: Array, faithful: bool, name: str) -> tuple[Quadric, bool]:
+def _ellipsoid_quadric(
+    x: Array, faithful: bool, name: str, weights: Array | None = None
+) -> tuple[Quadric, bool]:
     """Eq. 8-12 on all samples; hardened: conditioned, with the Li & Griffiths fallback."""
-    quadric = algebraic_fit(x, conditioned=not faithful)
+    quadric = algebraic_fit(x, weights, conditioned=not faithful)
     if quadric.is_ellipsoid:
         return quadric, False
     if faithful:
@@ -167,7 +176,7 @@ def _ellipsoid_quadric(x: Array, faithful: bool, name: str) -> tuple[Quadric, bo
         NotAnEllipsoidWarning,
         stacklevel=3,
     )
-    quadric = li_griffiths_fit(x)
+    quadric = li_griffiths_fit(x, weights)
     if not quadric.is_ellipsoid:  # pragma: no cover - 4J − I² = 1 admits only ellipsoids
         raise ValueError(f"{name}: no ellipsoid fits these samples; record more orientations")
     return quadric, True
@@ -317,8 +326,9 @@ class Alignment:
 
 
 def _check_pairs(accel: ArrayLike, mag: ArrayLike, minimum: int) -> tuple[Array, Array]:
-    a = _check_samples(accel, "accel_cal", minimum)
-    m = _check_samples(mag, "mag_cal", minimum)
+    why = f"Eq. 16 needs at least {minimum} pairs for its start and 4 unknowns"
+    a = _check_samples(accel, "accel_cal", minimum, why)
+    m = _check_samples(mag, "mag_cal", minimum, why)
     if a.shape != m.shape:
         raise ValueError(
             f"accel_cal has {a.shape[0]} samples but mag_cal has {m.shape[0]}; the alignment "
@@ -390,9 +400,9 @@ def _closed_form_start(a: Array, m: Array) -> tuple[Array, float]:
     singular value is ``(vec R, β)`` up to scale and sign, fixed by projecting onto SO(3).
     """
     rows = np.column_stack([_outer_rows(a, m), -np.ones(len(a))])
-    x = np.linalg.svd(rows, full_matrices=False)[2][-1]
-    R = x[:9].reshape(3, 3)
-    x = x * (np.sign(np.linalg.det(R)) or 1.0)
+    # the right singular vectors of the thin R factor are those of the tall matrix
+    x = np.linalg.svd(np.linalg.qr(rows, mode="r"))[2][-1]
+    x = x * (np.sign(np.linalg.det(x[:9].reshape(3, 3))) or 1.0)  # the proper solution
     scale = 3.0 / np.sum(np.linalg.svd(x[:9].reshape(3, 3), compute_uv=False))
     return project_to_so3(scale * x[:9].reshape(3, 3)), float(np.clip(scale * x[9], -1, 1))
 
@@ -407,8 +417,6 @@ def _initial_beta(inclination_deg: float | None) -> float:
 
 
 def _alignment(R: Array, beta: float, result: Any, faithful: bool, start: str) -> Alignment:
-    from scipy.spatial.transform import Rotation
-
     xyzw = Rotation.from_matrix(R).as_quat()
     q = np.array([xyzw[3], *xyzw[:3]])
     q = q if q[0] >= 0 else -q
@@ -504,7 +512,8 @@ def align(
     Alignment
     """
     faithful = bool(faithful)
-    a, m = _check_pairs(accel_cal, mag_cal, 4 if faithful else MIN_SAMPLES)
+    # 4 unknowns; the hardened closed-form start solves for 10 up to scale, so needs 9 pairs
+    a, m = _check_pairs(accel_cal, mag_cal, 4 if faithful else 9)
     if np.any(np.linalg.norm(a, axis=1) == 0) or np.any(np.linalg.norm(m, axis=1) == 0):
         raise ValueError("zero-length calibrated vectors; calibrate both sensors first")
     if faithful:
@@ -519,7 +528,7 @@ def _continuous(samples: Any, name: str) -> Array | None:
         return None
     if isinstance(samples, np.ndarray) and samples.ndim == 2:
         return _check_samples(samples, name)
-    if isinstance(samples, Sequence) or isinstance(samples, np.ndarray):
+    if isinstance(samples, (Sequence, np.ndarray)):
         try:
             stacked = np.concatenate([np.atleast_2d(np.asarray(p, float)) for p in samples])
         except ValueError:
@@ -572,12 +581,81 @@ def _noise(
     return np.eye(3) * var, "residuals"
 
 
-def _validate_options(options: dict[str, Any]) -> None:
-    unknown = sorted(set(options) - set(_OPTIONS))
+def _validate_options(
+    options: dict[str, Any],
+    faithful: Any,
+    inclination_deg: Any,
+    fit_on: str,
+    continuous: bool,
+) -> None:
+    unknown = sorted(set(options))
     if unknown:
         raise ValueError(
             f"unknown option(s) {unknown} for method='ellipsoid'; known: {', '.join(_OPTIONS)}"
         )
+    if not isinstance(faithful, (bool, np.bool_)):
+        raise ValueError(f"faithful must be True or False, got {faithful!r}")
+    if inclination_deg is not None:
+        try:
+            _initial_beta(float(inclination_deg))
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"inclination_deg must be a number in [-90, 90], got {inclination_deg!r}"
+            ) from None
+    if fit_on not in ("samples", "pose_means"):
+        raise ValueError(f"fit_on must be 'samples' or 'pose_means', got {fit_on!r}")
+    if fit_on == "pose_means" and continuous:
+        raise ValueError("fit_on='pose_means' needs per-pose input; got continuous (n, 3) arrays")
+
+
+@dataclass(frozen=True)
+class _Inputs:
+    """What the fits need: points (and weights) per sensor, and the pairs for Eq. 16."""
+
+    samples: dict[str, Array | None]  # all raw samples (residual noise)
+    points: dict[str, Array | None]  # what the ellipsoid is fitted on
+    weights: dict[str, Array | None]
+    pairs: tuple[Array, Array] | None
+
+
+def _continuous_inputs(raw_accel: Any, raw_mag: Any) -> _Inputs:
+    xa, xm = _continuous(raw_accel, "accel"), _continuous(raw_mag, "mag")
+    if xa is None and xm is None:
+        raise ValueError("no data: pass accelerometer samples, magnetometer samples, or both")
+    if xa is not None and xm is not None and len(xa) != len(xm):
+        raise ValueError(
+            f"accel has {len(xa)} samples but mag has {len(xm)}; continuous input must pair "
+            "the two sensors' samples one to one (same length, same instants)"
+        )
+    pairs = None if xa is None or xm is None else (xa, xm)
+    samples = {"accel": xa, "mag": xm}
+    return _Inputs(samples, samples, {"accel": None, "mag": None}, pairs)
+
+
+def _pose_inputs(stats: PoseStats, raw_accel: Any, raw_mag: Any, fit_on: str) -> _Inputs:
+    if stats.n_poses < MIN_POSES:
+        raise ValueError(
+            f"{stats.n_poses} poses given; the ellipsoid of Eq. 8 has 9 free parameters, so "
+            f"method='ellipsoid' needs at least {MIN_POSES} distinct poses"
+        )
+    raw = {"accel": raw_accel, "mag": raw_mag}
+    samples = {
+        k: None if v is None else np.concatenate([np.reshape(p, (-1, 3)) for p in v])
+        for k, v in raw.items()
+    }
+    if fit_on == "pose_means":
+        # Eq. 5 means weighted by Δ_i: the noise no longer inflates the fitted radii
+        points = {k: None if v is None else getattr(stats, k).means for k, v in raw.items()}
+        weights = {
+            k: None if v is None else getattr(stats, k).counts.astype(float) for k, v in raw.items()
+        }
+        both = stats.accel is not None and stats.mag is not None
+        pairs = (stats.accel.means, stats.mag.means) if both else None
+        return _Inputs(samples, points, weights, pairs)
+    pairs = None
+    if raw_accel is not None and raw_mag is not None:
+        pairs = _paired_pose_samples(raw_accel, raw_mag)
+    return _Inputs(samples, samples, {"accel": None, "mag": None}, pairs)
 
 
 def fit(
@@ -589,47 +667,39 @@ def fit(
     noise_sources: dict[str, str] | None = None,
     faithful: bool = False,
     inclination_deg: float | None = None,
+    fit_on: str = "samples",
     **options: Any,
 ) -> Calibration:
     """``fieldcal.calibrate(..., method="ellipsoid")``: Sec. 2 per sensor, Sec. 3 jointly.
 
-    ``stats`` is ``None`` for continuous (n, 3) input, else the pose statistics; either way the
-    ellipsoids are fitted on all raw samples and the alignment on all sample pairs. Poses add
-    the per-pose rotations (two-vector Wahba on the calibrated pose means), Eq. 7's noise and
-    Eq. 8's cost; continuous input gives ``rotations`` of shape (0, 3, 3), residual noise and
-    ``cost = NaN``. Options: ``faithful`` (bool) and ``inclination_deg`` (float).
+    ``stats`` is ``None`` for continuous (n, 3) input, else the pose statistics. By default
+    (``fit_on="samples"``, the seed's way) the ellipsoids are fitted on all raw samples and the
+    alignment on all sample pairs, so pose boundaries only serve the report: the per-pose
+    rotations (two-vector Wahba on the calibrated pose means), Eq. 7's noise and Eq. 8's cost.
+    ``fit_on="pose_means"`` (per-pose input only) fits the count-weighted pose means instead,
+    which removes the bias the sample noise puts into an algebraic fit. Continuous input gives
+    ``rotations`` of shape (0, 3, 3), isotropic residual noise and ``cost = NaN``.
+
+    Options: ``faithful`` (bool), ``inclination_deg`` (float, the expected dip), ``fit_on``.
     """
-    _validate_options(options)
+    _validate_options(options, faithful, inclination_deg, fit_on, stats is None)
     faithful = bool(faithful)
-    noise_sources = noise_sources or {}
-    if stats is None:
-        xa, xm = _continuous(raw_accel, "accel"), _continuous(raw_mag, "mag")
-        if xa is None and xm is None:
-            raise ValueError("no data: pass accelerometer samples, magnetometer samples, or both")
-        pa, pm = xa, xm
-        if xa is not None and xm is not None and len(xa) != len(xm):
-            raise ValueError(
-                f"accel has {len(xa)} samples but mag has {len(xm)}; continuous input must pair "
-                "the two sensors' samples one to one (same length, same instants)"
-            )
-    else:
-        if stats.n_poses < MIN_POSES:
-            raise ValueError(
-                f"{stats.n_poses} poses given; the ellipsoid of Eq. 8 has 9 free parameters, so "
-                f"method='ellipsoid' needs at least {MIN_POSES} distinct poses"
-            )
-        xa = None if raw_accel is None else np.concatenate([np.reshape(p, (-1, 3)) for p in raw_accel])
-        xm = None if raw_mag is None else np.concatenate([np.reshape(p, (-1, 3)) for p in raw_mag])
-        pa, pm = (xa, xm) if xa is None or xm is None else _paired_pose_samples(raw_accel, raw_mag)
+    inputs = (
+        _continuous_inputs(raw_accel, raw_mag)
+        if stats is None
+        else _pose_inputs(stats, raw_accel, raw_mag, fit_on)
+    )
     fits = {
-        name: None if x is None else _sensor_fit(x, faithful, name)
-        for name, x in (("accel", xa), ("mag", xm))
+        name: None
+        if inputs.points[name] is None
+        else _sensor_fit(inputs.points[name], faithful, name, inputs.weights[name])
+        for name in ("accel", "mag")
     }
     alignment = None
-    if fits["accel"] is not None and fits["mag"] is not None:
+    if inputs.pairs is not None:
         alignment = align(
-            fits["accel"].correct(pa),
-            fits["mag"].correct(pm),
+            fits["accel"].correct(inputs.pairs[0]),
+            fits["mag"].correct(inputs.pairs[1]),
             faithful=faithful,
             inclination_deg=inclination_deg,
         )
@@ -638,15 +708,20 @@ def fit(
                 f"the faithful alignment gave beta = {alignment.beta:.6g} (|beta| > 1, no angle); "
                 "use faithful=False, which keeps |beta| <= 1"
             )
+    options_used = {
+        "faithful": faithful,
+        "inclination_deg": None if inclination_deg is None else float(inclination_deg),
+        "fit_on": fit_on,
+        "body_frame": body_frame,
+        "input": "continuous" if stats is None else "poses",
+    }
     return _calibration(
-        stats, fits, alignment, {"accel": xa, "mag": xm}, noise_sources, body_frame,
-        {"faithful": faithful, "inclination_deg": inclination_deg, "body_frame": body_frame,
-         "input": "continuous" if stats is None else "poses"},
+        stats, fits, alignment, inputs.samples, noise_sources or {}, body_frame, options_used
     )
 
 
-def _sensor_fit(x: Array, faithful: bool, name: str) -> EllipsoidFit:
-    quadric, fallback = _ellipsoid_quadric(x, faithful, name)
+def _sensor_fit(x: Array, faithful: bool, name: str, weights: Array | None) -> EllipsoidFit:
+    quadric, fallback = _ellipsoid_quadric(x, faithful, name, weights)
     result = _ellipsoid_result(x, quadric, fallback, faithful)
     if not result.is_ellipsoid:
         raise ValueError(
@@ -656,28 +731,54 @@ def _sensor_fit(x: Array, faithful: bool, name: str) -> EllipsoidFit:
     return result
 
 
+def _body_maps(
+    fits: dict[str, EllipsoidFit | None], alignment: Alignment | None
+) -> dict[str, Array | None]:
+    """Each sensor's correction to the common (accelerometer) axes: ``L`` and ``R_mis L``."""
+    maps = {k: None if f is None else f.correction for k, f in fits.items()}
+    if alignment is not None and maps["mag"] is not None:
+        maps["mag"] = alignment.rotation @ maps["mag"]  # Eq. 25
+    return maps
+
+
 def _pose_rotations(
-    stats: PoseStats, fits: dict[str, EllipsoidFit | None], alignment: Alignment | None,
-    gravity: Array | None, magnetic: Array | None,
+    stats: PoseStats,
+    fits: dict[str, EllipsoidFit | None],
+    maps: dict[str, Array | None],
+    noise: dict[str, Array],
+    fields: dict[str, Array | None],
 ) -> Array:
-    """Two-vector Wahba per pose on the calibrated pose means (one sensor: minimal rotation)."""
+    """Two-vector Wahba per pose on the calibrated pose means (one sensor: minimal rotation).
+
+    Each direction is weighted by its information, ``Δ_i`` over the noise variance in
+    calibrated units, so a noisy magnetometer does not tilt the rotations.
+    """
     body, world, weights = [], [], []
-    for name, reference in (("accel", gravity), ("mag", magnetic)):
-        sensor_fit, sensor_stats = fits[name], getattr(stats, name)
-        if sensor_fit is None or reference is None:
+    for name in ("accel", "mag"):
+        L = maps[name]
+        if L is None or fields[name] is None:
             continue
-        L = sensor_fit.correction
-        if name == "mag" and alignment is not None:
-            L = alignment.rotation @ L
-        v = (sensor_stats.means - sensor_fit.center) @ L.T
+        sensor_stats = getattr(stats, name)
+        v = (sensor_stats.means - fits[name].center) @ L.T
         body.append(v / np.linalg.norm(v, axis=1, keepdims=True))
-        world.append(np.broadcast_to(reference, v.shape))
-        # weight each direction by its information: Δ_i over the calibrated noise variance
-        cov = sensor_stats.cov if sensor_stats.cov is not None else np.eye(3) * 1e-6
-        weights.append(sensor_stats.counts / (np.trace(L @ cov @ L.T) / 3.0))
+        world.append(np.broadcast_to(fields[name], v.shape))
+        weights.append(sensor_stats.counts / (np.trace(L @ noise[name] @ L.T) / 3.0))
     if len(body) == 1:
         return _minimal_rotations(body[0], world[0][0])
     return wahba(np.stack(body, 1), np.stack(world, 1), np.stack(weights, 1))
+
+
+def _fields(
+    fits: dict[str, EllipsoidFit | None], alignment: Alignment | None
+) -> dict[str, Array | None]:
+    """``g = (0, 0, −1)``; ``h = (cos dip, 0, sin dip)`` with ``dip = θ − 90°`` (so that
+    ``g·h = −sin dip = cos θ = β``, Eq. 15); ``(1, 0, 0)`` for a magnetometer alone."""
+    gravity = None if fits["accel"] is None else np.array([0.0, 0.0, -1.0])
+    magnetic = None
+    if fits["mag"] is not None:
+        dip = 0.0 if alignment is None else np.radians(alignment.dip_deg)
+        magnetic = np.array([np.cos(dip), 0.0, np.sin(dip)])
+    return {"accel": gravity, "mag": magnetic}
 
 
 def _calibration(
@@ -689,53 +790,55 @@ def _calibration(
     body_frame: str,
     options: dict[str, Any],
 ) -> Calibration:
-    fa, fm = fits["accel"], fits["mag"]
-    gravity = None if fa is None else np.array([0.0, 0.0, -1.0])
-    magnetic = None
-    if fm is not None:
-        dip = 0.0 if alignment is None else np.radians(alignment.dip_deg)
-        magnetic = np.array([np.cos(dip), 0.0, np.sin(dip)])
-    Ka = None if fa is None else fa.gain
-    Km = None
-    if fm is not None:
-        Km = fm.gain if alignment is None else np.linalg.inv(alignment.rotation @ fm.correction)
+    """The seed's numbers as fieldcal's model (``gain = (R_mis L)⁻¹``, ``bias = c``), in
+    fieldcal's gauge, with rotations, noise and the Eq. 8 certificate when poses are given."""
+    maps = _body_maps(fits, alignment)
+    fields = _fields(fits, alignment)
+    noise, sources = {}, {}
+    for name, sensor_fit in fits.items():
+        if sensor_fit is not None:
+            sensor_stats = None if stats is None else getattr(stats, name)
+            noise[name], sources[name] = _noise(
+                sensor_stats, noise_sources.get(name), samples[name], sensor_fit
+            )
     rotations = (
-        np.zeros((0, 3, 3))
-        if stats is None
-        else _pose_rotations(stats, fits, alignment, gravity, magnetic)
+        np.zeros((0, 3, 3)) if stats is None else _pose_rotations(stats, fits, maps, noise, fields)
     )
+    gains = {k: None if L is None else np.linalg.inv(L) for k, L in maps.items()}
     R, Ka, Km, gravity, magnetic = canonical_gauge(
-        rotations, Ka, Km, gravity, magnetic, body_frame
+        rotations, gains["accel"], gains["mag"], fields["accel"], fields["mag"], body_frame
     )
-    sensors = {}
-    for name, sensor_fit, gain in (("accel", fa, Ka), ("mag", fm, Km)):
-        if sensor_fit is None:
-            sensors[name] = None
-            continue
-        cov, source = _noise(
-            None if stats is None else getattr(stats, name),
-            noise_sources.get(name),
-            samples[name],
-            sensor_fit,
+    gains = {"accel": Ka, "mag": Km}
+    sensors = {
+        name: None
+        if fits[name] is None
+        else SensorCalibration(
+            gains[name], fits[name].center, noise[name], noise_source=sources[name]
         )
-        sensors[name] = SensorCalibration(gain, sensor_fit.center, cov, noise_source=source)
-    status = _status(fits, alignment)
+        for name in ("accel", "mag")
+    }
     cal = Calibration(
         accel=sensors["accel"],
         mag=sensors["mag"],
         gravity=gravity,
-        magnetic=magnetic if fm is not None else None,
+        magnetic=magnetic,
         rotations=R,
         method="ellipsoid",
         iterations=0 if alignment is None else alignment.iterations,
         converged=True if alignment is None else alignment.converged,
         options=options,
     )
+    return _certified(cal, stats, _status(fits, alignment))
+
+
+def _certified(cal: Calibration, stats: PoseStats | None, status: str) -> Calibration:
+    """Eq. 8's cost and χ² certificate (dof ``3N − 22`` jointly, ``N − 9`` for one sensor:
+    3N readings minus 2N directions and 9 sensor parameters); NaN without poses."""
     if stats is None:
         diagnostics = Diagnostics(float("nan"), 0, float("nan"), np.zeros(0), status)
         return dataclasses.replace(cal, diagnostics=diagnostics)
     n = stats.n_poses
-    dof = 3 * n - 22 if fa is not None and fm is not None else n - 9
+    dof = 3 * n - 22 if cal.accel is not None and cal.mag is not None else n - 9
     diagnostics = certify(cal, stats, dof=dof, status=status)
     return dataclasses.replace(
         cal,

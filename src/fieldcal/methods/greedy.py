@@ -141,75 +141,97 @@ def initial_state(n_poses: int) -> GreedyState:
 
 
 # --------------------------------------------------------------------------- Eq. 8 and 9
-def _pose_costs_from_body(
-    state: GreedyState, data: Data, body_g: Array, body_h: Array
-) -> tuple[Array, Array, Array]:
-    """Eq. 9 per pose given ``R_i g`` and ``R_i h``; also the two residuals ``r_s``."""
-    r_a = body_g @ state.accel_gain.T + state.accel_bias - data.mean_a
-    r_m = body_h @ state.mag_gain.T + state.mag_bias - data.mean_m
-    J = data.count_a * np.einsum("ni,ij,nj->n", r_a, data.weight_a, r_a)
-    J += data.count_m * np.einsum("ni,ij,nj->n", r_m, data.weight_m, r_m)
-    return J, r_a, r_m
+def _hat(f: Array) -> Array:
+    """Matrices (..., 3, 3) with ``a @ _hat(f) == a × f`` for row vectors ``a``."""
+    x, y, z = np.moveaxis(np.asarray(f, dtype=float), -1, 0)
+    o = np.zeros_like(x)
+    rows = [np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)]
+    return np.stack(rows, -2)
+
+
+@dataclass(frozen=True)
+class _Frozen:
+    """Eq. 9's fixed parameters during the rotation step, both sensors stacked on axis ``s``."""
+
+    gain: Array  # (2, 3, 3) K_a, K_m
+    bias: Array  # (2, 3)
+    field: Array  # (2, 3) g, h
+    field_hat: Array  # (2, 3, 3)
+    weight: Array  # (2, 3, 3) Σ̂⁻¹
+    mean: Array  # (N, 2, 3) μ̂
+    count: Array  # (N, 2) Δ
+
+    @classmethod
+    def of(cls, state: GreedyState, data: Data) -> _Frozen:
+        field = np.stack([state.gravity, state.magnetic])
+        return cls(
+            gain=np.stack([state.accel_gain, state.mag_gain]),
+            bias=np.stack([state.accel_bias, state.mag_bias]),
+            field=field,
+            field_hat=_hat(field),
+            weight=np.stack([data.weight_a, data.weight_m]),
+            mean=np.stack([data.mean_a, data.mean_m], axis=1),
+            count=np.stack([data.count_a, data.count_m], axis=1),
+        )
+
+
+def _rotate(q: Array, fz: _Frozen) -> Array:
+    """``R(q) f_s`` (N, 2, 3) for unit quaternions (N, 4): ``(w² − v·v) f + 2 (v·f) v + 2 w v × f``.
+
+    Eq. 9 only needs ``R_i g`` and ``R_i h``; rotating the two vectors directly is cheaper than
+    building N matrices at every trial step of the line search.
+    """
+    w, v = q[:, :1, None], q[:, 1:]
+    vf = v @ fz.field.T  # (N, 2)
+    v_cross_f = np.einsum("nb,sbc->nsc", v, fz.field_hat)
+    scale = w * w - np.sum(v * v, axis=1)[:, None, None]
+    return scale * fz.field + 2.0 * (vf[:, :, None] * v[:, None, :] + w * v_cross_f)
+
+
+def _residual_cost(q: Array, fz: _Frozen) -> tuple[Array, Array, Array]:
+    """Eq. 9 per pose, the residuals ``r_s`` (N, 2, 3) and ``Σ̂_s⁻¹ r_s``."""
+    r = np.einsum("nsb,sab->nsa", _rotate(q, fz), fz.gain) + fz.bias - fz.mean
+    wr = np.einsum("nsa,sab->nsb", r, fz.weight)
+    return np.sum(fz.count * np.sum(r * wr, axis=2), axis=1), r, wr
+
+
+def _quaternion_gradient(q: Array, fz: _Frozen) -> tuple[Array, Array]:
+    """Eq. 9 and its analytic gradient on the unit sphere of quaternions, for all poses.
+
+    With ``λ_s = ∂J_i/∂(R_i f_s) = 2 Δ_s[i] K_sᵀ Σ̂_s⁻¹ r_s`` and ``R f`` as in :func:`_rotate`:
+    ``∂J/∂w = Σ_s 2 (w λ·f + λ·(v × f))``,
+    ``∂J/∂v = Σ_s 2 (−(λ·f) v + (v·f) λ + (λ·v) f + w f × λ)``,
+    then projected on the tangent plane ``q⊥``: the normalisation ``q / |q|`` removes the
+    radial part, so this is the gradient of ``J_i(R(q / |q|))`` at ``|q| = 1``.
+    """
+    J, _, wr = _residual_cost(q, fz)
+    lever = 2.0 * fz.count[:, :, None] * np.einsum("nsa,sab->nsb", wr, fz.gain)
+    w, v = q[:, :1], q[:, 1:]
+    lf = np.einsum("nsa,sa->ns", lever, fz.field)
+    vf = v @ fz.field.T
+    v_cross_f = np.einsum("nb,sbc->nsc", v, fz.field_hat)
+    lever_cross_f = np.einsum("nsb,sbc->nsc", lever, fz.field_hat)
+    d_w = 2.0 * (w[:, 0] * lf.sum(axis=1) + np.sum(lever * v_cross_f, axis=(1, 2)))
+    d_v = 2.0 * (
+        -lf.sum(axis=1)[:, None] * v
+        + np.einsum("ns,nsa->na", vf, lever)
+        + np.einsum("nsa,na,sb->nb", lever, v, fz.field)
+        - w * lever_cross_f.sum(axis=1)
+    )
+    grad = np.concatenate([d_w[:, None], d_v], axis=1)
+    grad -= np.sum(grad * q, axis=1, keepdims=True) * q
+    return J, grad
 
 
 def pose_costs(state: GreedyState, data: Data, quaternions: Array | None = None) -> Array:
     """Eq. 9: ``J_i(R_i) = Σ_s Δ_s[i] rᵀ Σ̂_s⁻¹ r``, ``r = K_s R_i f_s + b_s − μ̂_s[i]``."""
-    q = state.quaternions if quaternions is None else quaternions
-    R = quaternion_to_matrix(q)
-    return _pose_costs_from_body(state, data, R @ state.gravity, R @ state.magnetic)[0]
+    q = _normalise(state.quaternions if quaternions is None else quaternions)
+    return _residual_cost(q, _Frozen.of(state, data))[0]
 
 
 def cost(state: GreedyState, data: Data) -> float:
     """Eq. 8: the sum over poses of Eq. 9."""
     return float(pose_costs(state, data).sum())
-
-
-def _rotation_derivatives(q: Array) -> Array:
-    """``∂R/∂q_k`` (N, 4, 3, 3) of ``R(q) = (w² − v·v) I + 2 v vᵀ + 2 w [v]×``.
-
-    That quadratic form equals the rotation matrix on the unit sphere; projecting the gradient
-    on the sphere's tangent (:func:`_quaternion_gradient`) makes it the gradient of
-    ``J_i(R(q / |q|))``, the function the step actually moves on.
-    """
-    w, v = q[:, 0], q[:, 1:]
-    eye = np.eye(3)
-    skew_basis = np.array(  # [e_k]× for k = x, y, z
-        [
-            [[0, 0, 0], [0, 0, -1], [0, 1, 0]],
-            [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
-            [[0, -1, 0], [1, 0, 0], [0, 0, 0]],
-        ],
-        dtype=float,
-    )
-    skew_v = np.einsum("nk,kab->nab", v, skew_basis)
-    dR = np.empty((q.shape[0], 4, 3, 3))
-    dR[:, 0] = 2.0 * (w[:, None, None] * eye + skew_v)
-    outer = np.einsum("ka,nb->nkab", eye, v)  # e_k vᵀ
-    dR[:, 1:] = 2.0 * (
-        -v[:, :, None, None] * eye
-        + outer
-        + np.swapaxes(outer, -1, -2)
-        + w[:, None, None, None] * skew_basis
-    )
-    return dR
-
-
-def _quaternion_gradient(state: GreedyState, data: Data, q: Array) -> tuple[Array, Array]:
-    """Eq. 9 and its analytic gradient on the unit sphere of quaternions, for all poses.
-
-    ``∂J_i/∂R = Σ_s 2 Δ_s[i] K_sᵀ Σ̂_s⁻¹ r_s f_sᵀ``; chained through ``∂R/∂q_k`` and projected
-    on the tangent plane ``q⊥`` (the normalisation ``q / |q|`` removes the radial part).
-    """
-    R = quaternion_to_matrix(q)
-    body_g, body_h = R @ state.gravity, R @ state.magnetic
-    J, r_a, r_m = _pose_costs_from_body(state, data, body_g, body_h)
-    lever_a = 2.0 * data.count_a[:, None] * (r_a @ (data.weight_a @ state.accel_gain))
-    lever_m = 2.0 * data.count_m[:, None] * (r_m @ (data.weight_m @ state.mag_gain))
-    dJ_dR = np.einsum("na,b->nab", lever_a, state.gravity)
-    dJ_dR += np.einsum("na,b->nab", lever_m, state.magnetic)
-    grad = np.einsum("nkab,nab->nk", _rotation_derivatives(q), dJ_dR)
-    grad -= np.sum(grad * q, axis=1, keepdims=True) * q
-    return J, grad
 
 
 def _normalise(q: Array) -> Array:
@@ -227,21 +249,19 @@ def rotation_step(
     Poses are independent (Eq. 9), so all are evaluated together and only the active ones move:
     with N <= 30 one batched evaluation is cheaper than indexing out the active subset.
     """
+    fz = _Frozen.of(state, data)
     q = state.quaternions.copy()
-    J, grad = _quaternion_gradient(state, data, q)
+    J, grad = _quaternion_gradient(q, fz)
     step = _initial_step(state, data) * np.ones(q.shape[0])
     active = np.ones(q.shape[0], dtype=bool)
     for _ in range(max_iterations):
-        q_new, J_new, t = _armijo(state, data, q, J, grad, step, active)
-        _, grad_new = _quaternion_gradient(state, data, q_new)
+        q_new, J_new, grad_new, t = _armijo(fz, q, J, grad, step, active)
         s, y = q_new - q, grad_new - grad
-        sy = np.sum(s * s, axis=1), np.sum(s * y, axis=1)
+        ss, sy = np.sum(s * s, axis=1), np.sum(s * y, axis=1)
         # BB1 step s·s / s·y where the curvature is positive; otherwise double the last step.
-        bb = np.where(sy[1] > 0, sy[0] / np.where(sy[1] > 0, sy[1], 1.0), 2.0 * t)
-        step = np.where(active, bb, step)
+        step = np.where(active, np.where(sy > 0, ss / np.where(sy > 0, sy, 1.0), 2.0 * t), step)
         still = J - J_new > tol * (1.0 + J_new)
-        q, grad = np.where(active[:, None], q_new, q), np.where(active[:, None], grad_new, grad)
-        J = np.where(active, J_new, J)
+        q, J, grad = q_new, J_new, grad_new
         active &= still
         if not active.any():
             break
@@ -259,30 +279,37 @@ def _initial_step(state: GreedyState, data: Data) -> Array:
 
 
 def _armijo(
-    state: GreedyState,
-    data: Data,
+    fz: _Frozen,
     q: Array,
     J: Array,
     grad: Array,
     step: Array,
     active: Array,
-) -> tuple[Array, Array, Array]:
-    """Backtrack each active pose's step until Eq. 9 drops by 1e-4 · t |∇|² (Armijo)."""
+) -> tuple[Array, Array, Array, Array]:
+    """Backtrack each active pose's step until Eq. 9 drops by 1e-4 · t |∇|² (Armijo).
+
+    Every trial evaluates Eq. 9 and its gradient together, so the accepted point's gradient
+    (needed by the next BB step) costs nothing extra. Inactive poses do not move.
+    """
     t = step.copy()
     slope = np.sum(grad * grad, axis=1)
     failed = active.copy()
-    q_new, J_new = q.copy(), J.copy()
+    q_new, J_new, grad_new = q.copy(), J.copy(), grad.copy()
     for _ in range(60):
         trial = _normalise(q - t[:, None] * grad)
-        J_trial = pose_costs(state, data, trial)
-        q_new[failed], J_new[failed] = trial[failed], J_trial[failed]
+        J_trial, grad_trial = _quaternion_gradient(trial, fz)
+        q_new[failed], J_new[failed], grad_new[failed] = (
+            trial[failed],
+            J_trial[failed],
+            grad_trial[failed],
+        )
         failed &= J_trial > J - 1e-4 * t * slope
         if not failed.any():
             break
         t[failed] *= 0.5
     # A pose whose step underflowed keeps its rotation: Eq. 9 must never increase.
-    q_new[failed], J_new[failed] = q[failed], J[failed]
-    return q_new, J_new, t
+    q_new[failed], J_new[failed], grad_new[failed] = q[failed], J[failed], grad[failed]
+    return q_new, J_new, grad_new, t
 
 
 # --------------------------------------------------------------------------- Eq. 13, 15

@@ -56,32 +56,31 @@ def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
     )
 
 
-def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array]:
-    """Damped pose blocks' inverses, ``U⁻¹W`` and the reduced matrix S (Schur complement)."""
+def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array, Array, Array]:
+    """Damped pose blocks' inverses, ``U⁻¹W``, the reduced matrix S (Schur complement) and the
+    damping added to the pose and global diagonals (Marquardt: proportional to the diagonal)."""
     p = ne.U.shape[1]
     dU = np.einsum("nii->ni", ne.U)
-    Ud = ne.U + (lam * dU + 1e-12 * (1.0 + dU))[:, :, None] * np.eye(p)
-    Uinv = np.linalg.inv(Ud)
+    damp_p = lam * dU + 1e-12 * (1.0 + dU)
+    Uinv = np.linalg.inv(ne.U + damp_p[:, :, None] * np.eye(p))
     Y = Uinv @ ne.W
     dV = np.diag(ne.V)
-    S = ne.V + np.diag(lam * dV + 1e-12 * (1.0 + dV))
+    damp_g = lam * dV + 1e-12 * (1.0 + dV)
     G = ne.V.shape[0]
-    S -= ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
-    return Uinv, Y, S
+    S = ne.V + np.diag(damp_g) - ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
+    return Uinv, Y, S, damp_p, damp_g
 
 
 def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     """The damped step and the decrease of J it predicts (linearised model)."""
-    Uinv, Y, S = reduce(ne, lam)
+    Uinv, Y, S, damp_p, damp_g = reduce(ne, lam)
     G = ne.V.shape[0]
     z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
     rhs = -(ne.gg - ne.W.reshape(-1, G).T @ z.ravel())
     dg = np.linalg.solve(S, rhs)
     dp = -(z + (Y @ dg))
-    # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ, with H the undamped Gauss-Newton matrix
-    Hdp = (ne.U @ dp[:, :, None])[:, :, 0] + ne.W @ dg
-    Hdg = ne.V @ dg + ne.W.reshape(-1, G).T @ dp.ravel()
-    pred = -2.0 * (dg @ ne.gg + np.sum(dp * ne.gp)) - (dg @ Hdg + np.sum(dp * Hdp))
+    # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = −δᵀg + δᵀΛδ since (H + Λ)δ = −g
+    pred = -(dg @ ne.gg + np.sum(dp * ne.gp)) + dg @ (damp_g * dg) + np.sum(damp_p * dp * dp)
     return dg, dp, float(pred)
 
 

@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..poses import PoseStats
-from ..rotations import exp_so3
 
 Array = NDArray[np.float64]
 
@@ -116,9 +115,7 @@ def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Probl
         offset += size + 3
     dip_index = offset if len(sensors) == 2 else None
     n_global = offset + (1 if dip_index is not None else 0)
-    return Problem(
-        sensors, frame, stats.n_poses, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global
-    )
+    return Problem(sensors, frame, stats.n_poses, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global)
 
 
 def reweighted(problem: Problem, covs: dict[str, Array]) -> Problem:
@@ -194,6 +191,28 @@ def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Arra
     return Jp, Jg
 
 
+def exp_map(omega: Array) -> Array:
+    """Rodrigues' formula for a batch (N, 3), ``R = (1 − bθ²) I + a ω^ + b ωωᵀ``; the same as
+    :func:`fieldcal.rotations.exp_so3`, written entry-wise because it runs every LM step."""
+    th2 = np.einsum("ni,ni->n", omega, omega)
+    small = th2 < 1e-8
+    th = np.sqrt(np.where(small, 1.0, th2))
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
+    R = b[:, None, None] * omega[:, :, None] * omega[:, None, :]
+    d = 1.0 - b * th2
+    for k in range(3):
+        R[:, k, k] += d
+    x, y, z = (a[:, None] * omega).T
+    R[:, 0, 1] -= z
+    R[:, 1, 0] += z
+    R[:, 0, 2] += y
+    R[:, 2, 0] -= y
+    R[:, 1, 2] -= x
+    R[:, 2, 1] += x
+    return R
+
+
 def pack(problem: Problem, state: State) -> Array:
     """The global parameter vector of ``state`` (layout in the module docstring)."""
     x = np.empty(problem.n_global)
@@ -208,9 +227,7 @@ def pack(problem: Problem, state: State) -> Array:
     return x
 
 
-def apply_step(
-    problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None
-) -> State:
+def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None) -> State:
     """Additive update of the globals, multiplicative ``exp(ω^) R_i`` update of the rotations."""
     gains, biases = {}, {}
     for s in problem.sensors:
@@ -220,11 +237,9 @@ def apply_step(
         biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
     dip = state.dip + (dg[problem.dip_index] if problem.joint else 0.0)
     omega = dp if basis is None else np.einsum("nij,nj->ni", basis, dp)
-    return State(gains, biases, float(dip), exp_so3(omega) @ state.rotations)
+    return State(gains, biases, float(dip), exp_map(omega) @ state.rotations)
 
 
 def sensor_costs(problem: Problem, e: Array) -> dict[str, float]:
     """Each sensor's part of Eq. 8's J."""
-    return {
-        s: float(np.sum(e[:, 3 * k : 3 * k + 3] ** 2)) for k, s in enumerate(problem.sensors)
-    }
+    return {s: float(np.sum(e[:, 3 * k : 3 * k + 3] ** 2)) for k, s in enumerate(problem.sensors)}

@@ -108,7 +108,7 @@ def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
     rows *= np.sqrt(weights)[:, None]
     Vt = np.linalg.svd(rows, full_matrices=True)[2]
     Z = Vt[-2:]  # smallest two: the pencil holding the answer even when N is small
-    phi = np.linspace(0.0, np.pi, 91)[:-1]
+    phi = np.linspace(0.0, np.pi, 37)[:-1]
     cand = np.cos(phi)[:, None] * Z[0] + np.sin(phi)[:, None] * Z[1]
     Ms = cand[:, :9].reshape(-1, 3, 3)
     Uq, _, Vq = np.linalg.svd(Ms)

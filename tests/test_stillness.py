@@ -1,0 +1,115 @@
+"""Still-pose detection: synthetic logs with known boundaries, and real logs.
+
+imucal's hand-made segment list is the score: every annotated static part must be covered to at
+least 90 % by one detected interval, and every detected interval must be one of the annotated
+orientations (a part of the session may revisit a pose, e.g. before and after the Ferraris
+rotations; a revisit is the same pose, not an extra one).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fieldcal.continuous import simulate_continuous
+from fieldcal.errors import InputError
+from fieldcal.io import load_log
+from fieldcal.stillness import detect_still, moving_variance
+
+
+def _accel_gyro(log):
+    c = log.columns
+    return (np.column_stack([c["ax"], c["ay"], c["az"]]),
+            np.column_stack([c["gx"], c["gy"], c["gz"]]))
+
+
+def test_moving_variance_matches_direct():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(200, 3)) * [1, 2, 3] + 1e6  # a large offset must not hurt precision
+    got = moving_variance(x, 11)
+    i = 100
+    assert got[i] == pytest.approx(x[i - 5 : i + 6].var(axis=0).sum(), rel=1e-9)
+    assert got[0] == pytest.approx(x[:6].var(axis=0).sum(), rel=1e-9)  # truncated at the ends
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_synthetic_boundaries_found(seed):
+    # quiet sensor (noise well under the motion), as a good MEMS part on a bench
+    log = simulate_continuous("paper", seed=seed, noise_alpha=(1e-6, 1e-5), n_poses=10)
+    accel, gyro = _accel_gyro(log)
+    for g in (gyro, None):  # with and without the gyroscope
+        result = detect_still(accel, g, window=51, min_samples=100)
+        assert len(result.segments) == len(log.segments)
+        for seg, (start, stop) in zip(result.segments, log.segments, strict=True):
+            # inside the true still interval, and covering at least 80 % of it
+            assert start <= seg.start and seg.stop <= stop
+            assert seg.samples >= 0.8 * (stop - start)
+
+
+def test_paper_noise_needs_the_gyro():
+    # Table 1's noise (σ up to 0.1 |g|) hides slow turns from the accelerometer; the gyro sees them
+    log = simulate_continuous("paper", seed=3, pose_distribution="handheld")
+    accel, gyro = _accel_gyro(log)
+    assert len(detect_still(accel, gyro, window=51, min_samples=100).segments) == 15
+
+
+def test_short_gap_of_one_pose_is_merged():
+    rng = np.random.default_rng(5)
+    accel = rng.normal(scale=0.01, size=(1000, 3)) + [0, 0, 1]
+    accel[480:490] += rng.normal(scale=0.3, size=(10, 3))  # a tap on the table
+    result = detect_still(accel, window=25, min_samples=50, max_gap=60)
+    assert len(result.segments) == 1
+
+
+def test_too_short_log():
+    with pytest.raises(InputError, match="fewer than one detection window"):
+        detect_still(np.zeros((5, 3)), window=25)
+
+
+def test_imucal_annotated_segments(shared_data):
+    folder = shared_data("imucal")
+    log = load_log(folder / "example_ferraris_session.csv")
+    parts = json.loads((folder / "example_ferraris_session_list.json").read_text())
+    static = {k: v for k, v in parts.items() if not k.endswith("_rot")}
+    rate = 102.4  # the README's sampling rate; the file has only a sample index
+    result = detect_still(log.accel, log.gyro, window=int(0.5 * rate), min_samples=int(rate))
+    segs = result.segments
+    means = {}
+    for name, part in static.items():
+        a, b = part["start"], part["end"]
+        overlap = [max(0, min(s.stop, b) - max(s.start, a)) / (b - a) for s in segs]
+        best = int(np.argmax(overlap))
+        assert overlap[best] >= 0.9, (name, overlap[best])
+        means[name] = np.asarray(segs[best].mean)
+    # no extra poses: every detected interval is one of the six annotated orientations
+    for s in segs:
+        angles = [np.degrees(np.arccos(np.clip(
+            np.dot(s.mean, m) / np.linalg.norm(s.mean) / np.linalg.norm(m), -1, 1)))
+            for m in means.values()]
+        assert min(angles) < 1.0, (s.start, s.stop, min(angles))
+    # no interval inside a Ferraris rotation (the gyro sees the turn)
+    for name in ("x_rot", "y_rot", "z_rot"):
+        a, b = parts[name]["start"], parts[name]["end"]
+        assert all(min(s.stop, b) - max(s.start, a) <= 0.1 * (b - a) for s in segs), name
+
+
+def test_imu_tk_pose_count(shared_data):
+    folder = shared_data("imu_tk")
+    acc = np.loadtxt(folder / "xsens_acc.mat")
+    gyro = np.loadtxt(folder / "xsens_gyro.mat")
+    result = detect_still(acc[:, 1:], gyro[:, 1:], window=51, min_samples=100)  # 100 Hz
+    # the Tedaldi protocol: the initial ~50 s rest, then tens of poses held 1-4 s
+    assert 30 <= len(result.segments) <= 45
+    first = result.segments[0]
+    assert first.start < 100 and first.stop / 100 > 45  # the initial rest, about 50 s
+
+
+@pytest.mark.parametrize(("session", "low", "high"), [("session1", 5, 8), ("session3", 9, 14)])
+def test_icm20948_pose_count(shared_data, session, low, high):
+    folder = shared_data("icm20948-deadtomgc")
+    log = load_log(folder / "derived" / f"{session}.csv")
+    rate = 27.0  # no timestamps: the loop sleeps 30 ms per sample
+    result = detect_still(log.accel, log.gyro, window=15, min_samples=int(0.5 * rate))
+    assert low <= len(result.segments) <= high
