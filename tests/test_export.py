@@ -39,8 +39,9 @@ def test_c_header_formula_in_float32(cal, raw):
     for sensor, want in _expected(cal, raw).items():
         tag = sensor.upper()
         b = _numbers(re.search(rf"FIELDCAL_{tag}_BIAS\[3\] = \{{(.*?)\}};", text).group(1))
-        m = _numbers(re.search(rf"FIELDCAL_{tag}_MATRIX\[3\]\[3\] = \{{(.*?)\}};", text, re.S)
-                     .group(1)).reshape(3, 3)
+        m = _numbers(
+            re.search(rf"FIELDCAL_{tag}_MATRIX\[3\]\[3\] = \{{(.*?)\}};", text, re.S).group(1)
+        ).reshape(3, 3)
         # what the C code does: float arithmetic, out[i] = Σ_j M[i][j] (raw[j] − B[j])
         d = raw[sensor].astype(np.float32) - b.astype(np.float32)
         got = d @ m.astype(np.float32).T
@@ -57,8 +58,18 @@ def test_c_header_compiles_and_runs(cal, raw, tmp_path):
         "  fieldcal_apply(FIELDCAL_MAG_MATRIX, FIELDCAL_MAG_BIAS, raw, out);\n"
         '  printf("%.9g %.9g %.9g\\n", out[0], out[1], out[2]); return 0; }\n'
     )
-    subprocess.run(["cc", "-std=c99", "-Wall", "-Werror", "-o", str(tmp_path / "a.out"),
-                    str(tmp_path / "main.c")], check=True)
+    subprocess.run(
+        [
+            "cc",
+            "-std=c99",
+            "-Wall",
+            "-Werror",
+            "-o",
+            str(tmp_path / "a.out"),
+            str(tmp_path / "main.c"),
+        ],
+        check=True,
+    )
     out = subprocess.run([str(tmp_path / "a.out")], check=True, capture_output=True, text=True)
     got = np.array(out.stdout.split(), dtype=float)
     assert np.allclose(got, cal.correct_mag(r), rtol=1e-5, atol=1e-4)

@@ -15,26 +15,57 @@ from fieldcal.io import apply_to_file, load_log, parse_axes, read_table, recogni
         (["ax", "ay", "az", "mx", "my", "mz"], ["ax", "ay", "az"], ["mx", "my", "mz"], None),
         (  # imucal
             ["n_samples", "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z"],
-            ["acc_x", "acc_y", "acc_z"], None, ["gyr_x", "gyr_y", "gyr_z"],
+            ["acc_x", "acc_y", "acc_z"],
+            None,
+            ["gyr_x", "gyr_y", "gyr_z"],
         ),
         (  # sap6
             ["device", "shot", "group", "mag_x", "mag_y", "mag_z", "grav_x", "grav_y", "grav_z"],
-            ["grav_x", "grav_y", "grav_z"], ["mag_x", "mag_y", "mag_z"], None,
+            ["grav_x", "grav_y", "grav_z"],
+            ["mag_x", "mag_y", "mag_z"],
+            None,
         ),
         (  # icm20948-deadtomgc
-            ["sample", "ax_g", "ay_g", "az_g", "gx_dps", "gy_dps", "gz_dps", "mx_rawdiv10",
-             "my_rawdiv10", "mz_rawdiv10"],
-            ["ax_g", "ay_g", "az_g"], ["mx_rawdiv10", "my_rawdiv10", "mz_rawdiv10"],
+            [
+                "sample",
+                "ax_g",
+                "ay_g",
+                "az_g",
+                "gx_dps",
+                "gy_dps",
+                "gz_dps",
+                "mx_rawdiv10",
+                "my_rawdiv10",
+                "mz_rawdiv10",
+            ],
+            ["ax_g", "ay_g", "az_g"],
+            ["mx_rawdiv10", "my_rawdiv10", "mz_rawdiv10"],
             ["gx_dps", "gy_dps", "gz_dps"],
         ),
         (  # ROS bag export and unit suffixes
-            ["%time", "field.linear_acceleration.x", "field.linear_acceleration.y",
-             "field.linear_acceleration.z", "Accel X (g)", "AccelY", "accel_z"],
-            ["field.linear_acceleration.x", "field.linear_acceleration.y",
-             "field.linear_acceleration.z"], None, None,
+            [
+                "%time",
+                "field.linear_acceleration.x",
+                "field.linear_acceleration.y",
+                "field.linear_acceleration.z",
+                "Accel X (g)",
+                "AccelY",
+                "accel_z",
+            ],
+            [
+                "field.linear_acceleration.x",
+                "field.linear_acceleration.y",
+                "field.linear_acceleration.z",
+            ],
+            None,
+            None,
         ),
-        (["AccX", "AccY", "AccZ", "MagX", "MagY", "MagZ"], ["AccX", "AccY", "AccZ"],
-         ["MagX", "MagY", "MagZ"], None),
+        (
+            ["AccX", "AccY", "AccZ", "MagX", "MagY", "MagZ"],
+            ["AccX", "AccY", "AccZ"],
+            ["MagX", "MagY", "MagZ"],
+            None,
+        ),
     ],
 )
 def test_column_spellings(names, accel, mag, gyro):
@@ -51,8 +82,12 @@ def test_time_and_pose_columns():
 
 @pytest.mark.parametrize(
     ("spec", "raw", "mapped"),
-    [("+x+y+z", (1, 2, 3), (1, 2, 3)), ("+y+x-z", (1, 2, 3), (2, 1, -3)),
-     ("x-y-z", (1, 2, 3), (1, -2, -3)), ("-Y-X+Z", (1, 2, 3), (-2, -1, 3))],
+    [
+        ("+x+y+z", (1, 2, 3), (1, 2, 3)),
+        ("+y+x-z", (1, 2, 3), (2, 1, -3)),
+        ("x-y-z", (1, 2, 3), (1, -2, -3)),
+        ("-Y-X+Z", (1, 2, 3), (-2, -1, 3)),
+    ],
 )
 def test_parse_axes(spec, raw, mapped):
     assert np.array_equal(parse_axes(spec) @ np.array(raw, float), mapped)
@@ -138,8 +173,14 @@ def test_apply_streams_in_chunks(tmp_path):
     rng = np.random.default_rng(1)
     data = rng.normal(size=(1001, 6))
     src = tmp_path / "log.csv"
-    np.savetxt(src, np.column_stack([np.arange(1001), data]), delimiter=",", comments="",
-               header="t,ax,ay,az,mx,my,mz", fmt="%.17g")
+    np.savetxt(
+        src,
+        np.column_stack([np.arange(1001), data]),
+        delimiter=",",
+        comments="",
+        header="t,ax,ay,az,mx,my,mz",
+        fmt="%.17g",
+    )
     used = apply_to_file(_Identity(), src, tmp_path / "out.csv", chunk_rows=100)
     assert used == {"accel": ["ax", "ay", "az"], "mag": ["mx", "my", "mz"]}
     out = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)

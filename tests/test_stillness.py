@@ -21,8 +21,10 @@ from fieldcal.stillness import detect_still, moving_variance
 
 def _accel_gyro(log):
     c = log.columns
-    return (np.column_stack([c["ax"], c["ay"], c["az"]]),
-            np.column_stack([c["gx"], c["gy"], c["gz"]]))
+    return (
+        np.column_stack([c["ax"], c["ay"], c["az"]]),
+        np.column_stack([c["gx"], c["gy"], c["gz"]]),
+    )
 
 
 def test_moving_variance_matches_direct():
@@ -57,7 +59,7 @@ def test_paper_noise_needs_the_gyro():
 
 def test_short_gap_of_one_pose_is_merged():
     rng = np.random.default_rng(5)
-    accel = rng.normal(scale=0.01, size=(1000, 3)) + [0, 0, 1]
+    accel = rng.normal(scale=0.01, size=(1000, 3)) + np.array([0.0, 0.0, 1.0])
     accel[480:490] += rng.normal(scale=0.3, size=(10, 3))  # a tap on the table
     result = detect_still(accel, window=25, min_samples=50, max_gap=60)
     assert len(result.segments) == 1
@@ -85,9 +87,14 @@ def test_imucal_annotated_segments(shared_data):
         means[name] = np.asarray(segs[best].mean)
     # no extra poses: every detected interval is one of the six annotated orientations
     for s in segs:
-        angles = [np.degrees(np.arccos(np.clip(
-            np.dot(s.mean, m) / np.linalg.norm(s.mean) / np.linalg.norm(m), -1, 1)))
-            for m in means.values()]
+        angles = [
+            np.degrees(
+                np.arccos(
+                    np.clip(np.dot(s.mean, m) / np.linalg.norm(s.mean) / np.linalg.norm(m), -1, 1)
+                )
+            )
+            for m in means.values()
+        ]
         assert min(angles) < 1.0, (s.start, s.stop, min(angles))
     # no interval inside a Ferraris rotation (the gyro sees the turn)
     for name in ("x_rot", "y_rot", "z_rot"):

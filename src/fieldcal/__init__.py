@@ -13,6 +13,7 @@ __version__ = "0.1.0"
 
 from . import metrics
 from .api import calibrate
+from .errors import InputError
 from .methods.ellipsoid import align, fit_ellipsoid
 from .model import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
 from .poses import PoseStats, SensorStats, stats_from_means, summarize
@@ -21,6 +22,7 @@ from .simulate import Session, simulate
 __all__ = [
     "Calibration",
     "Diagnostics",
+    "InputError",
     "ParameterCovariance",
     "PoseStats",
     "SensorCalibration",

@@ -10,6 +10,7 @@ import json
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -85,17 +86,20 @@ def _detect_options(f: Any) -> Any:
     options = [
         click.option("--rate", type=float, help="Sample rate in Hz when there is no time column."),
         click.option(
-            "--min-still", type=float,
+            "--min-still",
+            type=float,
             help="Shortest still interval: seconds (samples without time/rate). Default 1 s / 50.",
         ),
         click.option(
-            "--window", type=float,
+            "--window",
+            type=float,
             help="Moving-variance window: seconds (samples without time/rate). Default 0.5 s / 25.",
         ),
         click.option("--trim", type=float, help="Cut at each end of an interval (s or samples)."),
         click.option(
-            "--still-threshold", type=float,
-            help="Accelerometer threshold as a per-axis std in raw units (default: 3x noise floor).",
+            "--still-threshold",
+            type=float,
+            help="Accelerometer threshold, per-axis std in raw units (default: 3x noise floor).",
         ),
     ]
     for option in reversed(options):
@@ -104,14 +108,24 @@ def _detect_options(f: Any) -> Any:
 
 
 def _load(
-    log: str, accel_cols: Any, mag_cols: Any, gyro_cols: Any, time_col: Any, pose_col: Any,
+    log: str,
+    accel_cols: Any,
+    mag_cols: Any,
+    gyro_cols: Any,
+    time_col: Any,
+    pose_col: Any,
     drop_nan: bool,
 ) -> Any:
     from .io import load_log
 
     return load_log(
-        log, accel_cols=accel_cols, mag_cols=mag_cols, gyro_cols=gyro_cols, time_col=time_col,
-        pose_col=pose_col, drop_nan=drop_nan,
+        log,
+        accel_cols=accel_cols,
+        mag_cols=mag_cols,
+        gyro_cols=gyro_cols,
+        time_col=time_col,
+        pose_col=pose_col,
+        drop_nan=drop_nan,
     )
 
 
@@ -138,8 +152,12 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
             "gain: apply the result to the raw columns as logged"
         )
     poses = poses_from_log(
-        log, rate=opts.get("rate"), window=opts.get("window"), min_still=opts.get("min_still"),
-        trim=opts.get("trim"), threshold=opts.get("still_threshold"),
+        log,
+        rate=opts.get("rate"),
+        window=opts.get("window"),
+        min_still=opts.get("min_still"),
+        trim=opts.get("trim"),
+        threshold=opts.get("still_threshold"),
     )
     how = (
         f"grouped by the pose column {log.used['pose'][0]!r}"
@@ -147,11 +165,20 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
         else "found by still detection" + (f" at {poses.rate:g} Hz" if poses.rate else "")
     )
     notes.append(f"{poses.n} poses {how}")
-    cal = calibrate_log(
-        log, poses, method=opts.get("method", "mle"), gravity=opts.get("gravity"),
-        field_strength=opts.get("field_strength"), noise=parse_noise(opts.get("noise")),
-        mag_axes=opts.get("mag_axes"), P=P,
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        cal = calibrate_log(
+            log,
+            poses,
+            method=opts.get("method", "mle"),
+            gravity=opts.get("gravity"),
+            field_strength=opts.get("field_strength"),
+            noise=parse_noise(opts.get("noise")),
+            mag_axes=opts.get("mag_axes"),
+            P=P,
+        )
+    # the library's warnings (an implausible fit, ...) belong in the summary, not as tracebacks
+    notes += [f"warning: {' '.join(str(w.message).split())}" for w in caught]
     return cal, poses, document(cal, poses), notes
 
 
@@ -160,8 +187,11 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
 @click.argument("log", type=click.Path())
 @click.option("-o", "--output", default="cal.json", show_default=True, help="Calibration JSON.")
 @click.option(
-    "--method", type=click.Choice(["mle", "greedy", "ellipsoid"]), default="mle",
-    show_default=True, help="Calibration method.",
+    "--method",
+    type=click.Choice(["mle", "greedy", "ellipsoid"]),
+    default="mle",
+    show_default=True,
+    help="Calibration method.",
 )
 @click.option("--gravity", type=float, help="|g| for calibrated accel units (e.g. 9.80665).")
 @click.option("--field-strength", type=float, help="|h| for calibrated mag units (e.g. 48.5).")
@@ -177,8 +207,13 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
 def calibrate(log: str, output: str, as_json: bool, quiet: bool, **opts: Any) -> None:
     """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON."""
     data = _load(
-        log, opts.pop("accel_cols"), opts.pop("mag_cols"), opts.pop("gyro_cols"),
-        opts.pop("time_col"), opts.pop("pose_col"), opts.pop("drop_nan"),
+        log,
+        opts.pop("accel_cols"),
+        opts.pop("mag_cols"),
+        opts.pop("gyro_cols"),
+        opts.pop("time_col"),
+        opts.pop("pose_col"),
+        opts.pop("drop_nan"),
     )
     cal, _, doc, notes = _run_calibration(data, opts)
     Path(output).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
@@ -200,7 +235,9 @@ def calibrate(log: str, output: str, as_json: bool, quiet: bool, **opts: Any) ->
 @click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
-def apply(cal_json: str, log: str, output: str, accel_cols: Any, mag_cols: Any, quiet: bool) -> None:
+def apply(
+    cal_json: str, log: str, output: str, accel_cols: Any, mag_cols: Any, quiet: bool
+) -> None:
     """Append calibrated columns (<col>_cal) to LOG; large CSV files are streamed."""
     from .io import apply_to_file
 
@@ -215,8 +252,12 @@ def apply(cal_json: str, log: str, output: str, accel_cols: Any, mag_cols: Any, 
 @cli.command()
 @click.argument("cal_json", type=click.Path())
 @click.option(
-    "--format", "fmt", type=click.Choice(["c-header", "matlab", "magneto", "json"]),
-    default="c-header", show_default=True, help="Target convention.",
+    "--format",
+    "fmt",
+    type=click.Choice(["c-header", "matlab", "magneto", "json"]),
+    default="c-header",
+    show_default=True,
+    help="Target convention.",
 )
 @click.option("-o", "--output", help="Write to this file instead of stdout.")
 def export(cal_json: str, fmt: str, output: str | None) -> None:
@@ -238,11 +279,19 @@ def export(cal_json: str, fmt: str, output: str | None) -> None:
 @click.option("--truth", help="Also write the true calibration as JSON.")
 @click.option("--continuous", is_flag=True, help="Time-stamped log with motion between poses.")
 @click.option("--poses", type=int, help="Number of poses (preset default: 15).")
-@click.option("--handheld", is_flag=True, help="Hand-held poses (mostly < 60° tilt) instead of uniform.")
+@click.option(
+    "--handheld", is_flag=True, help="Hand-held poses (mostly < 60° tilt) instead of uniform."
+)
 @click.option("--rate", type=float, default=100.0, show_default=True, help="Hz (--continuous).")
 def simulate(
-    preset: str, seed: int, output: str, truth: str | None, continuous: bool, poses: int | None,
-    handheld: bool, rate: float,
+    preset: str,
+    seed: int,
+    output: str,
+    truth: str | None,
+    continuous: bool,
+    poses: int | None,
+    handheld: bool,
+    rate: float,
 ) -> None:
     """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
     from .continuous import simulate_continuous
@@ -259,11 +308,20 @@ def simulate(
         session = draw(preset, seed=seed, **extra)
         counts = session.counts
         data = np.column_stack(
-            [np.repeat(np.arange(len(counts)), counts), np.concatenate(session.accel),
-             np.concatenate(session.mag)]
+            [
+                np.repeat(np.arange(len(counts)), counts),
+                np.concatenate(session.accel),
+                np.concatenate(session.mag),
+            ]
         )
-        np.savetxt(output, data, delimiter=",", header="pose,ax,ay,az,mx,my,mz", comments="",
-                   fmt=["%d"] + ["%.9g"] * 6)
+        np.savetxt(
+            output,
+            data,
+            delimiter=",",
+            header="pose,ax,ay,az,mx,my,mz",
+            comments="",
+            fmt=["%d"] + ["%.9g"] * 6,
+        )
     if truth:
         Path(truth).write_text(session.truth.to_json() + "\n", encoding="utf-8")
     click.echo(f"wrote {output}" + (f" and {truth}" if truth else ""))
@@ -282,8 +340,13 @@ def report(cal_json: str, log: str, output: str, png_dir: str | None, **cols: An
 
     cal = _read_cal(cal_json)
     data = _load(
-        log, cols["accel_cols"], cols["mag_cols"], cols["gyro_cols"], cols["time_col"],
-        cols["pose_col"], cols["drop_nan"],
+        log,
+        cols["accel_cols"],
+        cols["mag_cols"],
+        cols["gyro_cols"],
+        cols["time_col"],
+        cols["pose_col"],
+        cols["drop_nan"],
     )
     write_report(cal, data, output, png_dir=png_dir)
     click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
@@ -336,7 +399,9 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
         try:
             import matplotlib  # noqa: F401
         except ImportError:
-            console.print("matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')")
+            console.print(
+                "matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')"
+            )
         else:
             from .report import write_report
 

@@ -69,7 +69,9 @@ def simulate_continuous(
     Ka, Km = drawn["accel_gain"], drawn["mag_gain"]
     ba, bm = drawn["accel_bias"], drawn["mag_bias"]
     g, h = drawn["gravity"], drawn["magnetic"]
-    chol_a = np.linalg.cholesky(drawn["accel_cov"]) if np.any(drawn["accel_cov"]) else np.zeros((3, 3))
+    chol_a = (
+        np.linalg.cholesky(drawn["accel_cov"]) if np.any(drawn["accel_cov"]) else np.zeros((3, 3))
+    )
     chol_m = np.linalg.cholesky(drawn["mag_cov"]) if np.any(drawn["mag_cov"]) else np.zeros((3, 3))
 
     accel_parts, mag_parts, gyro_parts, segments = [], [], [], []
@@ -83,7 +85,7 @@ def simulate_continuous(
         position += n_still
         if i + 1 == len(R):
             break
-        m = max(2, int(round(rng.uniform(*move_seconds) * rate)))
+        m = max(2, round(rng.uniform(*move_seconds) * rate))
         u = (np.arange(m) + 0.5) / m
         s = 0.5 - 0.5 * np.cos(np.pi * u)  # raised cosine: starts and stops at rest
         phi = log_so3(R[i + 1] @ R[i].T)  # body-frame turn from pose i to pose i + 1

@@ -41,6 +41,11 @@ def _num(x: float) -> str:
     return f"{float(x):.9g}"
 
 
+def _floats(values: np.ndarray) -> str:
+    """C float literals, comma separated."""
+    return ", ".join(_num(v) + "f" for v in values)
+
+
 def _exact(x: float) -> str:
     """The shortest text that reads back as the same double (MATLAB, Magneto)."""
     return repr(float(x))
@@ -82,10 +87,8 @@ def c_header(cal: Calibration) -> str:
     for name, M, b in _sensors(cal):
         tag = name.upper()
         lines.append(f"/* {_NAMES[name]} */")
-        lines.append(
-            f"static const float FIELDCAL_{tag}_BIAS[3] = {{{', '.join(_num(v) + 'f' for v in b)}}};"
-        )
-        rows = ",\n    ".join("{" + ", ".join(_num(v) + "f" for v in row) + "}" for row in M)
+        lines.append(f"static const float FIELDCAL_{tag}_BIAS[3] = {{{_floats(b)}}};")
+        rows = ",\n    ".join("{" + _floats(row) + "}" for row in M)
         lines.append(f"static const float FIELDCAL_{tag}_MATRIX[3][3] = {{\n    {rows}\n}};")
         lines.append("")
     lines += [
@@ -125,7 +128,12 @@ def magneto(cal: Calibration) -> str:
     lines = [f"# {text}" for text in ["Sensor calibration written by fieldcal.", *_provenance(cal)]]
     lines.append("# Magneto convention: h_calibrated = A^-1 * (h - b), h a column vector.")
     for name, M, b in _sensors(cal):
-        lines += ["", f"[{_NAMES[name]}]", "Combined bias (b):", "  ".join(f"{_exact(v):>22}" for v in b)]
+        lines += [
+            "",
+            f"[{_NAMES[name]}]",
+            "Combined bias (b):",
+            "  ".join(f"{_exact(v):>22}" for v in b),
+        ]
         lines.append("")
         lines.append("Correction for combined scale factors, misalignments and soft iron (A^-1):")
         lines += ["  ".join(f"{_exact(v):>22}" for v in row) for row in M]

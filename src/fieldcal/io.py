@@ -47,7 +47,15 @@ _PREFIXES: dict[str, tuple[str, ...]] = {
         "acc",
         "a",
     ),
-    "mag": ("field_magnetic_field", "magnetic_field", "magnetometer", "compass", "magn", "mag", "m"),
+    "mag": (
+        "field_magnetic_field",
+        "magnetic_field",
+        "magnetometer",
+        "compass",
+        "magn",
+        "mag",
+        "m",
+    ),
     "gyro": (
         "field_angular_velocity",
         "angular_velocity",
@@ -210,7 +218,9 @@ def _read_parquet(path: Path) -> Table:
             f"{path}: reading Parquet needs pyarrow; pip install 'fieldcal[parquet]' or give a CSV"
         ) from None
     table = pq.read_table(path)
-    columns = {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.schema.names}
+    columns = {
+        name: table.column(name).to_numpy(zero_copy_only=False) for name in table.schema.names
+    }
     for name, values in columns.items():
         if values.dtype.kind == "O":
             columns[name] = values.astype(str)
@@ -234,7 +244,9 @@ def read_table(path: str | Path) -> Table:
     except InputError:
         raise
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read it ({exc}); give a readable CSV, .npz or .parquet") from None
+        raise InputError(
+            f"{path}: cannot read it ({exc}); give a readable CSV, .npz or .parquet"
+        ) from None
 
 
 # --------------------------------------------------------------------------- columns
@@ -460,6 +472,21 @@ def apply_to_file(
         return _apply_table(cal, read_table(src), dst, sensors, accel_cols, mag_cols)
     if not src.exists() or src.is_dir():
         raise InputError(f"{src}: no such file; check the path")
+    try:
+        return _apply_csv(cal, src, dst, sensors, accel_cols, mag_cols, chunk_rows)
+    except UnicodeDecodeError:
+        raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
+
+
+def _apply_csv(
+    cal: Any,
+    src: Path,
+    dst: Path,
+    sensors: list[str],
+    accel_cols: str | Sequence[str] | None,
+    mag_cols: str | Sequence[str] | None,
+    chunk_rows: int,
+) -> dict[str, list[str]]:
     with src.open(newline="", encoding="utf-8-sig") as handle:
         lines = _data_lines(handle)
         header_line = next(lines, None)
@@ -469,7 +496,7 @@ def apply_to_file(
         header = [h.strip() for h in _split([header_line], delimiter)[0]]
         used = _columns_for_apply(str(src), header, sensors, accel_cols, mag_cols)
         where = {s: [header.index(c) for c in cols] for s, cols in used.items()}
-        out_delim = delimiter or ","
+        out_delim = delimiter or " "  # keep the input's separator
         new_names = [f"{c}_cal" for s in used for c in used[s]]
         row_number = 0
         with dst.open("w", newline="", encoding="utf-8") as out:

@@ -48,11 +48,13 @@ def _rate(log: Log, rate: float | None) -> float | None:
     return None
 
 
-def _samples(value: float | None, default_seconds: float, default_samples: int, rate: float | None) -> int:
+def _samples(
+    value: float | None, default_seconds: float, default_samples: int, rate: float | None
+) -> int:
     """A duration in seconds when the rate is known, else a number of samples."""
     if value is None:
-        return int(round(default_seconds * rate)) if rate else default_samples
-    return int(round(value * rate)) if rate else int(round(value))
+        return round(default_seconds * rate) if rate else default_samples
+    return round(value * rate) if rate else round(value)
 
 
 def _label(value: Any) -> str:
@@ -132,11 +134,14 @@ def poses_from_log(
                 f"{3 * detection.threshold_std:.3g} or a shorter --min-still, or label poses with "
                 "--pose-col"
             )
-        groups = [np.arange(s.start, s.stop) for s in detection.segments]
+        groups = [s.rows for s in detection.segments]
         for s in detection.segments:
-            entries.append(
-                {"start": int(log.index[s.start]), "stop": int(log.index[s.stop - 1]) + 1}
-            )
+            entry = {"start": int(log.index[s.start]), "stop": int(log.index[s.stop - 1]) + 1}
+            if s.pieces:  # runs of one pose merged across a short disturbance, left out
+                entry["pieces"] = [
+                    [int(log.index[a]), int(log.index[b - 1]) + 1] for a, b in s.pieces
+                ]
+            entries.append(entry)
     for entry, rows in zip(entries, groups, strict=True):
         entry["samples"] = len(rows)
         ref = log.accel if log.accel is not None else log.mag
@@ -175,6 +180,26 @@ def parse_noise(text: str | None) -> Any:
         ) from None
 
 
+def _directions(samples: list[Array]) -> Array:
+    """Unit directions of the pose means about the mid-range point (a rough centre)."""
+    means = np.array([p.mean(axis=0) for p in samples])
+    centred = means - 0.5 * (means.max(axis=0) + means.min(axis=0))
+    return centred / np.maximum(np.linalg.norm(centred, axis=1, keepdims=True), 1e-300)
+
+
+def _distinct(directions: list[Array], tol_deg: float = 3.0) -> int:
+    """Number of distinct orientations: poses closer than ``tol_deg`` in every sensor are one."""
+    cos_tol = np.cos(np.radians(tol_deg))
+    same = np.ones((len(directions[0]),) * 2, dtype=bool)
+    for d in directions:
+        same &= d @ d.T > cos_tol
+    label = np.full(len(same), -1)
+    for i in range(len(same)):  # a loop over poses (tens), not samples
+        if label[i] < 0:
+            label[same[i] & (label < 0)] = i
+    return len(np.unique(label))
+
+
 def _check_poses(poses: PoseSet, method: str) -> None:
     n = poses.n
     if method != "ellipsoid" and n < MIN_POSES:
@@ -183,10 +208,9 @@ def _check_poses(poses: PoseSet, method: str) -> None:
             f"must outnumber the 3N pose angles plus 22 sensor parameters): hold the device still "
             f"in {MIN_POSES - n} or more further orientations"
         )
-    for name in ("accel", "mag"):
-        samples = getattr(poses, name)
-        if samples is None:
-            continue
+    sensors = [(name, getattr(poses, name)) for name in ("accel", "mag")]
+    sensors = [(name, samples) for name, samples in sensors if samples is not None]
+    for name, samples in sensors:
         means = np.array([p.mean(axis=0) for p in samples])
         centred = means - means.mean(axis=0)
         _, s, vt = np.linalg.svd(centred, full_matrices=False)
@@ -198,6 +222,16 @@ def _check_poses(poses: PoseSet, method: str) -> None:
                 "axes), so they cannot determine the calibration; add poses with that axis "
                 "tilted up and down"
             )
+    # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
+    need = MIN_POSES if len(sensors) == 2 else 9
+    distinct = _distinct([_directions(samples) for _, samples in sensors])
+    if distinct < need:
+        raise InputError(
+            f"the {n} poses show only {distinct} distinct orientations (closer than 3° count as "
+            f"one); {'a joint' if len(sensors) == 2 else 'a single-sensor'} calibration needs at "
+            f"least {need}: add poses tilted between the axes (e.g. resting on the edges and "
+            "corners of a box), not only with each axis up and down"
+        )
 
 
 def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:

@@ -21,17 +21,24 @@ from .model import Calibration
 __all__ = ["write_report"]
 
 Array = NDArray[np.float64]
-_MAX_POINTS = 4000  # enough to see the shape of a sphere, small enough for a light HTML file
+_MAX_POINTS = 2500  # enough to see the shape of a sphere, small enough for a light HTML file
 
 
 def _pose_rows(cal: Calibration, log: Any) -> list[NDArray[np.int64]]:
     """Row positions (in the loaded log) of each pose, from the calibration's start/stop."""
     rows = []
+    last = int(log.index[-1]) + 1 if log.n else 0
     for pose in cal.poses:
         if "start" not in pose or "stop" not in pose:
             continue
+        if pose["stop"] > last:
+            raise InputError(
+                f"{log.path}: the calibration's pose {pose.get('index', len(rows))} ends at row "
+                f"{pose['stop']} but the log has {last} rows; give the log it was made from"
+            )
         lo, hi = np.searchsorted(log.index, [pose["start"], pose["stop"]])
-        rows.append(np.arange(lo, hi))
+        if hi > lo:
+            rows.append(np.arange(lo, hi))
     return rows
 
 
@@ -40,23 +47,25 @@ def _thin(x: Array, rng: np.random.Generator) -> Array:
 
 
 def _sphere_figure(plt: Any, name: str, raw: Array, calibrated: Array, radius: float) -> Any:
-    fig, axes = plt.subplots(2, 3, figsize=(11, 7), constrained_layout=True)
+    fig, axes = plt.subplots(2, 3, figsize=(11, 7))
     circle = np.linspace(0, 2 * np.pi, 200)
     for k, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
         top, bottom = axes[0, k], axes[1, k]
-        top.scatter(raw[:, i], raw[:, j], s=2, alpha=0.4, color="tab:red")
+        top.plot(raw[:, i], raw[:, j], ".", ms=1.5, alpha=0.4, color="tab:red")
         top.set_title(f"raw {'xyz'[i]}-{'xyz'[j]}")
-        bottom.scatter(calibrated[:, i], calibrated[:, j], s=2, alpha=0.4, color="tab:blue")
+        bottom.plot(calibrated[:, i], calibrated[:, j], ".", ms=1.5, alpha=0.4, color="tab:blue")
         bottom.plot(radius * np.cos(circle), radius * np.sin(circle), "k--", lw=1)
         bottom.set_title(f"calibrated {'xyz'[i]}-{'xyz'[j]} (dashed: ideal sphere)")
         for ax in (top, bottom):
             ax.set_aspect("equal", adjustable="datalim")
     fig.suptitle(f"{name}: raw and calibrated readings")
+    # fixed margins: constrained layout would double the time of the whole report
+    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.05, top=0.9, wspace=0.3, hspace=0.3)
     return fig
 
 
 def _coverage_figure(plt: Any, directions: dict[str, Array]) -> Any:
-    fig = plt.figure(figsize=(10, 4.5), constrained_layout=True)
+    fig = plt.figure(figsize=(10, 4.5))
     for k, (name, d) in enumerate(directions.items()):
         ax = fig.add_subplot(1, len(directions), k + 1, projection="mollweide")
         lon = np.arctan2(d[:, 1], d[:, 0])
@@ -65,13 +74,14 @@ def _coverage_figure(plt: Any, directions: dict[str, Array]) -> Any:
         for i, (x, y) in enumerate(zip(lon, lat, strict=True)):
             ax.annotate(str(i), (x, y), fontsize=7)
         ax.grid(True)
-        ax.set_title(f"{name} field direction per pose (sensor frame)")
+        ax.set_title(f"{name} field direction per pose (sensor frame)", pad=20)
+    fig.subplots_adjust(left=0.04, right=0.98, wspace=0.15)
     return fig
 
 
 def _residual_figure(plt: Any, cal: Calibration) -> Any:
     share = np.array([p.get("share", np.nan) for p in cal.poses], dtype=float)
-    fig, ax = plt.subplots(figsize=(10, 3.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(10, 3.5))
     n = len(share)
     ax.bar(np.arange(n), 100 * share, color="tab:purple")
     if n:
@@ -81,12 +91,15 @@ def _residual_figure(plt: Any, cal: Calibration) -> Any:
     ax.set_xlabel("pose")
     ax.set_ylabel("share of the fit cost (%)")
     ax.set_title("per-pose residuals")
+    fig.subplots_adjust(bottom=0.15)
     return fig
 
 
-def _histogram_figure(plt: Any, norms: dict[str, Array], dip: Array | None, cal: Calibration) -> Any:
+def _histogram_figure(
+    plt: Any, norms: dict[str, Array], dip: Array | None, cal: Calibration
+) -> Any:
     panels = len(norms) + (dip is not None)
-    fig, axes = plt.subplots(1, panels, figsize=(4 * panels, 3.5), constrained_layout=True)
+    fig, axes = plt.subplots(1, panels, figsize=(4 * panels, 3.5))
     axes = np.atleast_1d(axes)
     for ax, (name, values) in zip(axes, norms.items(), strict=False):
         ax.hist(values, bins=60, color="tab:blue")
@@ -98,6 +111,7 @@ def _histogram_figure(plt: Any, norms: dict[str, Array], dip: Array | None, cal:
             ax.axvline(cal.dip_deg, color="k", ls="--", lw=1, label=f"fit {cal.dip_deg:.2f}°")
             ax.legend()
         ax.set_title("dip per still sample (°)")
+    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.12, wspace=0.25)
     return fig
 
 
@@ -111,7 +125,9 @@ def _summary_html(cal: Calibration) -> str:
         bias = " ".join(f"{v:.6g}" for v in sensor.bias)
         rows.append(f"<tr><th>{name} gain</th><td><code>{gain}</code></td></tr>")
         rows.append(f"<tr><th>{name} bias</th><td><code>{bias}</code></td></tr>")
-        rows.append(f"<tr><th>{name} noise source</th><td>{html.escape(sensor.noise_source)}</td></tr>")
+        rows.append(
+            f"<tr><th>{name} noise source</th><td>{html.escape(sensor.noise_source)}</td></tr>"
+        )
     if cal.dip_deg is not None:
         rows.append(f"<tr><th>dip</th><td>{cal.dip_deg:.3f}°</td></tr>")
     if cal.misalignment_deg is not None:
@@ -135,9 +151,7 @@ def write_report(
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise InputError(
-            "the report needs matplotlib; pip install 'fieldcal[plot]'"
-        ) from None
+        raise InputError("the report needs matplotlib; pip install 'fieldcal[plot]'") from None
     rng = np.random.default_rng(0)
     rows = _pose_rows(cal, log)
     still = np.concatenate(rows) if rows else np.arange(log.n)
@@ -190,7 +204,9 @@ def write_report(
             (Path(png_dir) / f"{key}.png").write_bytes(buffer.getvalue())
         plt.close(fig)
         encoded = base64.b64encode(buffer.getvalue()).decode("ascii")
-        images.append(f'<h2>{html.escape(key)}</h2><img alt="{key}" src="data:image/png;base64,{encoded}">')
+        images.append(
+            f'<h2>{html.escape(key)}</h2><img alt="{key}" src="data:image/png;base64,{encoded}">'
+        )
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>fieldcal report</title>"
         "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"

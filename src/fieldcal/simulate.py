@@ -38,6 +38,23 @@ PRESETS: dict[str, dict[str, Any]] = {
         "mag_axes": None,
     },
 }
+# Harder settings than Table 1 (the mle benchmark): each changes one thing, "hard" all at once.
+_PAPER = PRESETS["paper"]
+PRESETS["few_poses"] = {**_PAPER, "n_poses": 8, "samples": (30, 60)}
+PRESETS["soft_iron"] = {**_PAPER, "gain_spread": 0.35, "bias": 3.0}
+PRESETS["steep_dip"] = {**_PAPER, "dip_deg": (75.0, 85.0)}
+PRESETS["handheld"] = {**_PAPER, "pose_distribution": "handheld"}
+PRESETS["noisy"] = {**_PAPER, "noise_alpha": (1e-2, 5e-2)}
+PRESETS["hard"] = {
+    **_PAPER,
+    "n_poses": 10,
+    "samples": (30, 60),
+    "gain_spread": 0.35,
+    "bias": 3.0,
+    "dip_deg": (75.0, 85.0),
+    "pose_distribution": "handheld",
+    "noise_alpha": (1e-2, 5e-2),
+}
 
 
 @dataclass(frozen=True, eq=False)

@@ -13,9 +13,11 @@ Algorithm (all vectorised; cumulative sums give every moving-window statistic in
 3. Runs of windows under the threshold are still intervals; ``trim`` samples are cut at each
    end (the hand settles or starts to move there), and runs shorter than ``min_samples`` are
    dropped.
-4. Adjacent intervals of one pose are merged: a short gap (at most ``max_gap`` samples, e.g.
+4. A run whose samples, taken together, exceed the threshold drifted slowly (quiet windows,
+   but a slow turn): it is cut into pieces of ``min_samples`` and the still pieces are kept.
+5. Adjacent intervals of one pose are merged: a short gap (at most ``max_gap`` samples, e.g.
    a tap on the table) between intervals whose mean readings agree within ``merge_sigma``
-   standard errors of the noise.
+   per-sample noise standard deviations; the gap's samples are left out.
 """
 
 from __future__ import annotations
@@ -34,16 +36,27 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Segment:
-    """A still interval: samples ``start`` to ``stop`` (exclusive) of the log as given."""
+    """A still interval from ``start`` to ``stop`` (exclusive) of the log as given.
+
+    ``pieces`` are the still runs it is made of (more than one when runs of one pose were
+    merged across a short disturbance, whose samples are left out).
+    """
 
     start: int
     stop: int
     std: float
     mean: tuple[float, float, float]
+    pieces: tuple[tuple[int, int], ...] = ()
+
+    @property
+    def rows(self) -> NDArray[np.int64]:
+        """Sample positions of the interval, without the samples of merged-over gaps."""
+        pieces = self.pieces or ((self.start, self.stop),)
+        return np.concatenate([np.arange(a, b) for a, b in pieces])
 
     @property
     def samples(self) -> int:
-        return self.stop - self.start
+        return len(self.rows)
 
 
 @dataclass(frozen=True)
@@ -183,11 +196,13 @@ def detect_still(
     runs[:, 0] += trim
     runs[:, 1] -= trim
     runs = runs[runs[:, 1] - runs[:, 0] >= max(1, min(min_samples, 3))]
-    segments = _merge(accel, runs, max_gap, merge_sigma * np.sqrt(floor_a / 3.0))
-    keep = segments[:, 1] - segments[:, 0] >= min_samples
-    segments = segments[keep]
+    # quiet windows can still drift slowly (a slow turn): such a run is cut into pieces of
+    # min_samples and only the pieces that are still as a whole are kept
+    runs = _split_drifting(accel, runs, thr_a, max(min_samples, window))
+    groups = _merge(accel, runs, max_gap, merge_sigma * np.sqrt(floor_a / 3.0), thr_a)
+    segments = [s for s in (_segment(accel, runs[g]) for g in groups) if s.samples >= min_samples]
     return StillResult(
-        segments=tuple(_segment(accel, a, b) for a, b in segments),
+        segments=tuple(segments),
         threshold=float(thr_a),
         noise_floor=float(floor_a),
         window=window,
@@ -196,23 +211,75 @@ def detect_still(
     )
 
 
-def _merge(accel: Array, runs: NDArray[np.int64], max_gap: int, tol: float) -> NDArray[np.int64]:
-    """Join consecutive runs separated by a short gap and agreeing in their mean reading."""
-    if len(runs) < 2:
+def _var(c1: Array, c2: Array, runs: NDArray[np.int64]) -> tuple[Array, Array]:
+    """Means (k, 3) and total variances (k,) of runs, from cumulative sums."""
+    n = (runs[:, 1] - runs[:, 0])[:, None]
+    mean = (c1[runs[:, 1]] - c1[runs[:, 0]]) / n
+    var = ((c2[runs[:, 1]] - c2[runs[:, 0]]) / n - mean**2).sum(axis=1)
+    return mean, var
+
+
+def _sums(accel: Array) -> tuple[Array, Array]:
+    x = accel - accel.mean(axis=0)
+    zero = np.zeros((1, 3))
+    return np.concatenate([zero, np.cumsum(x, axis=0)]), np.concatenate([zero, np.cumsum(x * x, 0)])
+
+
+def _split_drifting(
+    accel: Array, runs: NDArray[np.int64], threshold: float, length: int
+) -> NDArray[np.int64]:
+    if len(runs) == 0:
         return runs
-    c = np.concatenate([np.zeros((1, 3)), np.cumsum(accel, axis=0)])
-    means = (c[runs[:, 1]] - c[runs[:, 0]]) / (runs[:, 1] - runs[:, 0])[:, None]
+    c1, c2 = _sums(accel)
+    _, var = _var(c1, c2, runs)
+    pieces = [runs[var < threshold]]
+    for a, b in runs[var >= threshold]:  # a loop over runs, not samples
+        edges = np.arange(a, b + 1, length)
+        if len(edges) < 2:
+            continue
+        edges[-1] = b
+        chunks = np.column_stack([edges[:-1], edges[1:]])
+        pieces.append(chunks[_var(c1, c2, chunks)[1] < threshold])
+    runs = np.concatenate(pieces)
+    return runs[np.argsort(runs[:, 0])]
+
+
+def _merge(
+    accel: Array, runs: NDArray[np.int64], max_gap: int, tol: float, threshold: float
+) -> list[NDArray[np.int64]]:
+    """Group consecutive runs separated by a short gap and agreeing in their mean reading.
+
+    A group whose pooled samples are not still as a whole (slow drift across the pieces) falls
+    back to its pieces.
+    """
+    if len(runs) == 0:
+        return []
+    c1, c2 = _sums(accel)
+    means, _ = _var(c1, c2, runs)
     gap = runs[1:, 0] - runs[:-1, 1]
     same = (gap <= max_gap) & (np.linalg.norm(np.diff(means, axis=0), axis=1) < tol)
-    # a new merged segment starts wherever the previous run is not "the same pose"
-    starts = np.concatenate([[True], ~same])
-    first = np.flatnonzero(starts)
-    last = np.concatenate([first[1:] - 1, [len(runs) - 1]])
-    return np.column_stack([runs[first, 0], runs[last, 1]])
+    starts = np.flatnonzero(np.concatenate([[True], ~same]))
+    groups = np.split(np.arange(len(runs)), starts[1:])
+    out: list[NDArray[np.int64]] = []
+    for group in groups:
+        rows = np.concatenate([np.arange(a, b) for a, b in runs[group]])
+        if len(group) > 1 and accel[rows].var(axis=0).sum() >= threshold:
+            out.extend(g[None] for g in group)
+        else:
+            out.append(group)
+    return out
 
 
-def _segment(accel: Array, start: int, stop: int) -> Segment:
-    part = accel[start:stop]
+def _segment(accel: Array, runs: NDArray[np.int64]) -> Segment:
+    pieces = tuple((int(a), int(b)) for a, b in runs)
+    rows = np.concatenate([np.arange(a, b) for a, b in pieces])
+    part = accel[rows]
     std = float(np.sqrt(np.mean(part.var(axis=0))))
     mean = part.mean(axis=0)
-    return Segment(int(start), int(stop), std, (float(mean[0]), float(mean[1]), float(mean[2])))
+    return Segment(
+        pieces[0][0],
+        pieces[-1][1],
+        std,
+        (float(mean[0]), float(mean[1]), float(mean[2])),
+        pieces if len(pieces) > 1 else (),
+    )

@@ -1,4 +1,4 @@
-"""The human-readable summary of a calibration (rich tables), shared by ``calibrate`` and ``demo``."""
+"""The human-readable summary of a calibration (rich tables), for ``calibrate`` and ``demo``."""
 
 from __future__ import annotations
 
@@ -42,8 +42,8 @@ def _flags(pose: dict[str, Any], n: int) -> str:
     share = pose.get("share")
     if share is not None and n > 0 and share > 3.0 / n:
         flags.append("high residual")
-    if pose.get("samples", 2) < 2:
-        flags.append("1 sample")
+    if pose.get("pieces"):
+        flags.append(f"merged {len(pose['pieces'])} runs")
     return ", ".join(flags)
 
 
@@ -52,7 +52,7 @@ def print_summary(
 ) -> None:
     """Gains and biases ± standard errors, noise, dip, misalignment, certificate, poses."""
     for note in notes or []:
-        console.print(note)
+        console.print(note, markup=False)
     for name, sensor in (("accelerometer", cal.accel), ("magnetometer", cal.mag)):
         if sensor is None:
             continue
@@ -61,7 +61,9 @@ def print_summary(
         source = _SOURCES.get(sensor.noise_source, sensor.noise_source)
         console.print(f"  noise std per axis (one raw sample): {noise} — {source}")
     if cal.dip_deg is not None:
-        console.print(f"dip angle: {_pm(cal.dip_deg, cal.dip_std_deg, '.3f')}° (positive below the horizon)")
+        console.print(
+            f"dip angle: {_pm(cal.dip_deg, cal.dip_std_deg, '.3f')}° (positive below the horizon)"
+        )
     if cal.misalignment_deg is not None:
         console.print(
             f"misalignment between the sensors: "
@@ -69,8 +71,13 @@ def print_summary(
         )
     diag = cal.diagnostics
     if diag is not None:
+        from_residuals = any(
+            s is not None and s.noise_source == "residuals" for s in (cal.accel, cal.mag)
+        )
         verdict = (
-            "consistent with the noise"
+            "not a test: the noise was estimated from these residuals"
+            if from_residuals
+            else "consistent with the noise"
             if np.isfinite(diag.p_value) and diag.p_value > 0.01
             else "the model does not explain the data to within the noise; check the flagged poses"
             if np.isfinite(diag.p_value)
@@ -78,7 +85,8 @@ def print_summary(
         )
         console.print(
             f"fit certificate: J = {diag.statistic:.4g}, dof = {diag.dof}, "
-            f"p = {diag.p_value:.3g} ({verdict}){' ' + diag.status if diag.status else ''}"
+            f"p = {diag.p_value:.3g} ({verdict})"
+            + (f"; status: {diag.status}" if diag.status else "")
         )
     console.print(f"method {cal.method}, {cal.iterations} iterations, converged: {cal.converged}")
     still = doc.get("still_detection")
@@ -119,22 +127,26 @@ def print_truth_comparison(
         t, e = getattr(truth, name), getattr(cal, name)
         if t is None or e is None:
             continue
-        table.add_row(
-            f"{name} gain (max |Δ|)", "", "", f"{np.max(np.abs(t.gain - e.gain)):.3g}"
-        )
+        table.add_row(f"{name} gain (max |Δ|)", "", "", f"{np.max(np.abs(t.gain - e.gain)):.3g}")
         for i in range(3):
             table.add_row(
-                f"{name} bias[{i}]", f"{t.bias[i]:.5f}", f"{e.bias[i]:.5f}",
+                f"{name} bias[{i}]",
+                f"{t.bias[i]:.5f}",
+                f"{e.bias[i]:.5f}",
                 f"{e.bias[i] - t.bias[i]:+.2g}",
             )
     if truth.dip_deg is not None and cal.dip_deg is not None:
         table.add_row(
-            "dip (°)", f"{truth.dip_deg:.3f}", f"{cal.dip_deg:.3f}",
+            "dip (°)",
+            f"{truth.dip_deg:.3f}",
+            f"{cal.dip_deg:.3f}",
             f"{cal.dip_deg - truth.dip_deg:+.3f}",
         )
     console.print(table)
     for name, delta in deltas.items():
         if delta is None:
-            console.print(f"δ ({name}, Eq. 19): not computed (the poses found differ from the truth)")
+            console.print(
+                f"δ ({name}, Eq. 19): not computed (the poses found differ from the truth)"
+            )
         else:
             console.print(f"δ ({name}, Eq. 19) = {delta:.4f} noise standard deviations")

@@ -322,10 +322,12 @@ def bias_field_step(state: GreedyState, data: Data) -> tuple[GreedyState, int]:
     number of signs fixed.
     """
     R = state.rotations
-    g_z, *b_a = gls(accel_bias_field_design(state.accel_gain, R), data.mean_a, data.weight_a,
-                    data.count_a)  # fmt: skip
-    h_x, h_z, *b_m = gls(mag_bias_field_design(state.mag_gain, R), data.mean_m, data.weight_m,
-                         data.count_m)  # fmt: skip
+    X_a, X_m = (
+        accel_bias_field_design(state.accel_gain, R),
+        mag_bias_field_design(state.mag_gain, R),
+    )
+    g_z, *b_a = gls(X_a, data.mean_a, data.weight_a, data.count_a)
+    h_x, h_z, *b_m = gls(X_m, data.mean_m, data.weight_m, data.count_m)
     fixes = int(g_z > 0) + int(h_x < 0)
     return (
         dataclasses.replace(

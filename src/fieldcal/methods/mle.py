@@ -34,14 +34,22 @@ from .mle_uncertainty import uncertainty, wishart_std
 __all__ = ["fit", "sensor_cost_and_dof"]
 
 DEFAULTS: dict[str, Any] = {
-    "max_iter": 100,  # LM iterations per start
+    "max_iter": 200,  # LM iterations per start
     "tol": 1e-10,  # stop when a step lowers J by less than tol·(1 + J)
     "p_min": 1e-4,  # certificate: a p-value below this is implausible
     "mag_mirrored": None,  # None: majority rule; True/False: det(K_a K_m) < 0 or > 0
     "initial": None,  # a Calibration to start from instead of the closed-form starts
 }
-#: Closed-form starts, in order; the first two always run, the rest when the certificate fails.
-STARTS = ("full", "axes", "sphere")
+#: Closed-form starts (accelerometer's, magnetometer's ellipsoid family), in order: the first two
+#: always run, the others when the poses are few or the certificate is doubtful.
+_FAMILIES = ("full", "axes", "sphere")
+STARTS = (("full", "full"), ("axes", "axes")) + tuple(
+    (a, m) for a in _FAMILIES for m in _FAMILIES if a != m or a == "sphere"
+)
+#: Below this many poses every start runs (the likelihood has more local minima).
+FEW_POSES = 12
+#: Certificate p-value below which every start runs.
+P_RETRY = 0.01
 #: Jacobi-scaled condition number of the reduced system above which the poses are degenerate.
 COND_WARN = 1e10
 
@@ -216,17 +224,23 @@ def fit(
 
     from scipy.special import chdtrc
 
+    def label(model: tuple[str, str]) -> str:
+        return model[0] if len(problem.sensors) == 1 or model[0] == model[1] else "/".join(model)
+
     if opts["initial"] is not None:
         consider(_state_from_calibration(problem, opts["initial"]), "initial")
         starts = STARTS
     else:
         for model in STARTS[:2]:
-            consider(closed_form_start(problem, model), model)
+            consider(closed_form_start(problem, model), label(model))
         starts = STARTS[2:]
-    if best is None or chdtrc(problem.dof, best.cost) < opts["p_min"]:
+    if len(problem.sensors) == 1:
+        starts = tuple(m for m in starts if m[0] == m[1])
+    few = n < FEW_POSES and opts["initial"] is None
+    if few or best is None or chdtrc(problem.dof, best.cost) < max(P_RETRY, opts["p_min"]):
         for model in starts:
-            if model not in tried:
-                consider(closed_form_start(problem, model), model)
+            if label(model) not in tried:
+                consider(closed_form_start(problem, model), label(model))
     if best is None:
         raise ValueError(
             "no closed-form start: the pose means do not outline an ellipsoid; "

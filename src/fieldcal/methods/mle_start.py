@@ -106,7 +106,7 @@ def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
     """Orthogonal Q and c with ``u_iᵀ Q v_i ≈ c`` for all poses (constant gravity-field angle)."""
     rows = np.concatenate([np.einsum("ni,nj->nij", u, v).reshape(-1, 9), -np.ones((len(u), 1))], 1)
     rows *= np.sqrt(weights)[:, None]
-    Vt = np.linalg.svd(rows, full_matrices=True)[2]
+    Vt = np.linalg.svd(rows, full_matrices=len(rows) < 10)[2]
     Z = Vt[-2:]  # smallest two: the pencil holding the answer even when N is small
     phi = np.linspace(0.0, np.pi, 37)[:-1]
     cand = np.cos(phi)[:, None] * Z[0] + np.sin(phi)[:, None] * Z[1]
@@ -133,11 +133,12 @@ def min_rotations(f: Array, u: Array) -> Array:
     return exp_so3(axis * angle[:, None])
 
 
-def closed_form_start(problem: Problem, model: str = "full") -> State | None:
+def closed_form_start(problem: Problem, model: str | tuple[str, str] = "full") -> State | None:
     """A full starting state, or None when an ellipsoid fit fails for this model."""
+    models = (model, model) if isinstance(model, str) else model
     fits = {}
-    for s in problem.sensors:
-        fit = sensor_start(problem, s, model)
+    for s, m in zip(problem.sensors, models, strict=False):
+        fit = sensor_start(problem, s, m)
         if fit is None:
             return None
         fits[s] = fit

@@ -1,0 +1,68 @@
+"""Noise from residuals: the fixed point of fieldcal.noise for poses with one sample each."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fieldcal
+from fieldcal.methods import mle
+from fieldcal.noise import fit_with_residual_noise
+
+
+def _single_shots(seed, n_poses, sigma_a, sigma_m):
+    s = fieldcal.simulate("paper", seed=seed, n_poses=n_poses, noise_alpha=(0, 0), samples=(1, 1))
+    rng = np.random.default_rng(seed)
+    ta, tm = s.truth.predicted_means()
+    accel = ta + rng.normal(0, sigma_a, ta.shape)
+    mag = tm + rng.normal(0, sigma_m, tm.shape)
+    return s, accel, mag
+
+
+def test_isotropic_noise_is_recovered_per_sensor():
+    s, accel, mag = _single_shots(3, 300, 2e-3, 5e-3)
+    cal = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]))
+    assert cal.accel.noise_source == cal.mag.noise_source == "residuals"
+    sa, sm = np.sqrt(cal.accel.noise_cov[0, 0]), np.sqrt(cal.mag.noise_cov[0, 0])
+    assert sa == pytest.approx(2e-3, rel=0.1) and sm == pytest.approx(5e-3, rel=0.1)
+    assert np.allclose(cal.accel.noise_cov, sa**2 * np.eye(3))
+    # the statistic matches its degrees of freedom at the fixed point
+    assert cal.diagnostics.statistic == pytest.approx(cal.diagnostics.dof, rel=1e-4)
+    # χ² standard error of σ²: σ² sqrt(2/ν_s), ν_a + ν_m = 3N − 22
+    nu_a = 2 * cal.accel.noise_cov[0, 0] ** 2 / cal.accel.noise_cov_std[0, 0] ** 2
+    nu_m = 2 * cal.mag.noise_cov[0, 0] ** 2 / cal.mag.noise_cov_std[0, 0] ** 2
+    assert nu_a + nu_m == pytest.approx(3 * 300 - 22, rel=1e-6)
+    assert cal.accel.noise_cov_std[0, 1] == 0.0
+
+
+def test_error_bars_cover_with_residual_noise():
+    hits, n = 0, 60
+    for seed in range(n):
+        s, accel, mag = _single_shots(100 + seed, 24, 3e-3, 3e-3)
+        cal = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]))
+        hits += abs(cal.dip_deg - s.truth.dip_deg) <= 1.96 * cal.dip_std_deg
+    assert 0.85 <= hits / n <= 1.0
+
+
+def test_user_noise_replaces_the_estimate_and_one_sensor_alone_works():
+    s, accel, mag = _single_shots(5, 30, 2e-3, 2e-3)
+    cal = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]), noise=2e-3)
+    assert cal.accel.noise_source == "user" and np.all(cal.accel.noise_cov_std == 0)
+    assert "residuals" not in cal.diagnostics.status
+    mixed = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]), noise={"accel": 2e-3})
+    assert mixed.accel.noise_source == "user" and mixed.mag.noise_source == "residuals"
+    alone = fieldcal.calibrate(None, list(mag[:, None]))
+    assert alone.mag.noise_source == "residuals"
+    assert alone.diagnostics.statistic == pytest.approx(30 - 9, rel=1e-4)
+    assert np.sqrt(alone.mag.noise_cov[0, 0]) == pytest.approx(2e-3, rel=0.4)
+
+
+def test_fixed_point_is_generic_over_methods():
+    """Without warm start (as for the greedy method) the same fixed point is reached."""
+    s, accel, mag = _single_shots(8, 20, 2e-3, 4e-3)
+    stats = fieldcal.stats_from_means(accel, mag)
+    sources = {"accel": "residuals", "mag": "residuals"}
+    cold = fit_with_residual_noise(mle.fit, stats, sources, warm_start=False)
+    warm = fit_with_residual_noise(mle.fit, stats, sources, warm_start=True)
+    assert cold.accel.noise_cov[0, 0] == pytest.approx(warm.accel.noise_cov[0, 0], rel=1e-5)
+    assert cold.dip_deg == pytest.approx(warm.dip_deg, abs=1e-6)
