@@ -69,7 +69,7 @@ def test_calibrate_summary_and_json(files):
         "dip angle",
         "misalignment",
         "fit certificate",
-        "residual share",
+        "residual cost J",
         "within-pose scatter",
     ):
         assert text in out
@@ -254,3 +254,26 @@ def test_report_errors(files, tmp_path, monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", no_matplotlib)
     user_error("report", files["cal"], files["session"], match="fieldcal[plot]")
+
+
+def test_mirrored_magnetometer_needs_mag_axes(tmp_path):
+    # a magnetometer whose z axis is mirrored relative to the accelerometer's (det < 0)
+    session = fieldcal.simulate("paper", seed=8, mag_axes=np.diag([1.0, 1.0, -1.0]))
+    path = _pose_csv(tmp_path / "s.csv", session.accel, session.mag)
+    truth = session.truth.dip_deg
+    out = run("calibrate", path, "-o", tmp_path / "a.json").output
+    # without the map the data cannot tell its handedness: right-handed twin, dip sign flipped
+    assert "right-handed twin" in out
+    a = fieldcal.Calibration.from_json((tmp_path / "a.json").read_text())
+    assert abs(a.dip_deg + truth) < 1.0
+    out = run("calibrate", path, "--mag-axes", "+x+y-z", "-o", tmp_path / "b.json").output
+    assert "right-handed twin" not in out and "folded back" in out
+    b = fieldcal.Calibration.from_json((tmp_path / "b.json").read_text())
+    assert abs(b.dip_deg - truth) < 1.0
+    # the folded calibration applies to the raw columns: |m| = 1 and the true dip per pose
+    raw_a = np.array([x.mean(0) for x in session.accel])
+    raw_m = np.array([x.mean(0) for x in session.mag])
+    va, vm = b.correct_accel(raw_a), b.correct_mag(raw_m)
+    assert np.allclose(np.linalg.norm(vm, axis=1), 1.0, atol=0.02)
+    cos = np.sum(va * vm, 1) / np.linalg.norm(va, axis=1) / np.linalg.norm(vm, axis=1)
+    assert np.allclose(np.degrees(np.arcsin(-cos)), truth, atol=1.0)

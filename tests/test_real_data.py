@@ -59,8 +59,16 @@ def test_sap6_joint_calibration(shared_data, device, tmp_path):
         writer = csv.writer(handle)
         writer.writerow(keys)
         writer.writerows([r[k] for k in keys] for r in rows)
-    out = run("calibrate", log, "--pose-col", "shot", "-o", tmp_path / "cal.json").output
+    # The magnetometer in the accelerometer's raw axes: upstream maps mag "+x+y-z" and grav
+    # "-y-x+z" to one frame, so mag -> accel is "-y-x-z"; and SAP6's `grav` is the gravity
+    # vector (down: ĝ·m̂ = +0.92 under a UK field), not the specific force (up) the model reads,
+    # which negates the relation: "+y+x+z", a mirror. Without it the fit's dip sign is
+    # ambiguous and the right-handed choice gives −67.9°.
+    out = run(
+        "calibrate", log, "--pose-col", "shot", "--mag-axes", "+y+x+z", "-o", tmp_path / "cal.json"
+    ).output
     assert "24 poses grouped by the pose column 'shot'" in out
+    assert "right-handed twin" not in out
     assert out.count("estimated from the fit's residuals") == 2  # one sample per shot
     cal = fieldcal.Calibration.from_json((tmp_path / "cal.json").read_text())
     grav, mag = np.array(shots["grav"]), np.array(shots["mag"])

@@ -16,6 +16,7 @@ import pytest
 from fieldcal.continuous import simulate_continuous
 from fieldcal.errors import InputError
 from fieldcal.io import load_log
+from fieldcal.pipeline import poses_from_log
 from fieldcal.stillness import detect_still, moving_variance
 
 
@@ -75,31 +76,23 @@ def test_imucal_annotated_segments(shared_data):
     log = load_log(folder / "example_ferraris_session.csv")
     parts = json.loads((folder / "example_ferraris_session_list.json").read_text())
     static = {k: v for k, v in parts.items() if not k.endswith("_rot")}
-    rate = 102.4  # the README's sampling rate; the file has only a sample index
-    result = detect_still(log.accel, log.gyro, window=int(0.5 * rate), min_samples=int(rate))
-    segs = result.segments
-    means = {}
+    # the README's sampling rate (the file has only a sample index): 0.5 s windows, 1 s minimum
+    poses = poses_from_log(log, rate=102.4).entries
+    matched = {}
     for name, part in static.items():
         a, b = part["start"], part["end"]
-        overlap = [max(0, min(s.stop, b) - max(s.start, a)) / (b - a) for s in segs]
+        overlap = [max(0, min(p["stop"], b) - max(p["start"], a)) / (b - a) for p in poses]
         best = int(np.argmax(overlap))
         assert overlap[best] >= 0.9, (name, overlap[best])
-        means[name] = np.asarray(segs[best].mean)
-    # no extra poses: every detected interval is one of the six annotated orientations
-    for s in segs:
-        angles = [
-            np.degrees(
-                np.arccos(
-                    np.clip(np.dot(s.mean, m) / np.linalg.norm(s.mean) / np.linalg.norm(m), -1, 1)
-                )
-            )
-            for m in means.values()
-        ]
-        assert min(angles) < 1.0, (s.start, s.stop, min(angles))
-    # no interval inside a Ferraris rotation (the gyro sees the turn)
+        matched[name] = poses[best]["orientation"]
+    # no extra poses: six distinct orientations, one per annotated part; the other intervals
+    # are revisits of those (still before and after each Ferraris rotation)
+    assert len(set(matched.values())) == 6
+    assert {p["orientation"] for p in poses} == set(matched.values())
+    # and no interval inside a rotation (the gyro sees the turn)
     for name in ("x_rot", "y_rot", "z_rot"):
         a, b = parts[name]["start"], parts[name]["end"]
-        assert all(min(s.stop, b) - max(s.start, a) <= 0.1 * (b - a) for s in segs), name
+        assert all(min(p["stop"], b) - max(p["start"], a) <= 0.1 * (b - a) for p in poses), name
 
 
 def test_imu_tk_pose_count(shared_data):

@@ -164,7 +164,8 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
         if poses.detection is None
         else "found by still detection" + (f" at {poses.rate:g} Hz" if poses.rate else "")
     )
-    notes.append(f"{poses.n} poses {how}")
+    distinct = len({e["orientation"] for e in poses.entries})
+    notes.append(f"{poses.n} poses {how} ({distinct} distinct orientations)")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cal = calibrate_log(
@@ -179,6 +180,13 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
         )
     # the library's warnings (an implausible fit, ...) belong in the summary, not as tracebacks
     notes += [f"warning: {' '.join(str(w.message).split())}" for w in caught]
+    if cal.options.get("mag_handedness_flipped"):
+        notes.append(
+            "note: the fit's mirrored-magnetometer solution was replaced by its right-handed twin "
+            "(same likelihood, opposite dip sign): the data cannot tell them apart, so fieldcal "
+            "takes the magnetometer as right-handed in its axes; declare a mirrored one with "
+            "--mag-axes (e.g. +y+x-z)"
+        )
     return cal, poses, document(cal, poses), notes
 
 

@@ -467,6 +467,8 @@ def apply_to_file(
     value give ``nan``. Returns the columns used per sensor.
     """
     src, dst = Path(src), Path(dst)
+    if dst.resolve() == src.resolve():
+        raise InputError(f"{dst}: is the input log itself; write the output to another file")
     sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
     if src.suffix.lower() in (".npz", ".parquet", ".pq"):
         return _apply_table(cal, read_table(src), dst, sensors, accel_cols, mag_cols)

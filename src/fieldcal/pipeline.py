@@ -146,13 +146,23 @@ def poses_from_log(
         entry["samples"] = len(rows)
         ref = log.accel if log.accel is not None else log.mag
         entry["std"] = float(np.sqrt(np.mean(ref[rows].var(axis=0)))) if len(rows) > 1 else None
-    return PoseSet(
+    poses = PoseSet(
         accel=None if log.accel is None else [log.accel[r] for r in groups],
         mag=None if log.mag is None else [log.mag[r] for r in groups],
         entries=entries,
         detection=detection,
         rate=hz,
     )
+    # revisits of one orientation (e.g. before and after a rotation) share a label
+    for entry, label in zip(entries, poses_orientations(poses), strict=True):
+        entry["orientation"] = int(label)
+    return poses
+
+
+def poses_orientations(poses: PoseSet) -> NDArray[np.int64]:
+    """Orientation label of each pose (revisits of one orientation share a label)."""
+    sensors = [s for s in (poses.accel, poses.mag) if s is not None]
+    return orientation_labels([_directions(s) for s in sensors])
 
 
 def parse_noise(text: str | None) -> Any:
@@ -187,8 +197,9 @@ def _directions(samples: list[Array]) -> Array:
     return centred / np.maximum(np.linalg.norm(centred, axis=1, keepdims=True), 1e-300)
 
 
-def _distinct(directions: list[Array], tol_deg: float = 3.0) -> int:
-    """Number of distinct orientations: poses closer than ``tol_deg`` in every sensor are one."""
+def orientation_labels(directions: list[Array], tol_deg: float = 3.0) -> NDArray[np.int64]:
+    """Label each pose with its orientation: poses closer than ``tol_deg`` in every sensor's
+    field direction share a label (0, 1, ... in order of first appearance)."""
     cos_tol = np.cos(np.radians(tol_deg))
     same = np.ones((len(directions[0]),) * 2, dtype=bool)
     for d in directions:
@@ -197,7 +208,7 @@ def _distinct(directions: list[Array], tol_deg: float = 3.0) -> int:
     for i in range(len(same)):  # a loop over poses (tens), not samples
         if label[i] < 0:
             label[same[i] & (label < 0)] = i
-    return len(np.unique(label))
+    return np.unique(label, return_inverse=True)[1]
 
 
 def _check_poses(poses: PoseSet, method: str) -> None:
@@ -224,7 +235,7 @@ def _check_poses(poses: PoseSet, method: str) -> None:
             )
     # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
     need = MIN_POSES if len(sensors) == 2 else 9
-    distinct = _distinct([_directions(samples) for _, samples in sensors])
+    distinct = len(set(poses_orientations(poses)))
     if distinct < need:
         raise InputError(
             f"the {n} poses show only {distinct} distinct orientations (closer than 3° count as "
@@ -269,6 +280,34 @@ def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
     return dataclasses.replace(cal, mag=new, covariance=covariance, options=options)
 
 
+def right_handed(cal: Calibration) -> Calibration:
+    """The right-handed twin of a fit whose magnetometer gain has a negative determinant.
+
+    ``K_m R_i h`` is unchanged by ``K_m -> −K_m``, ``R_i -> R_i D``, ``h -> −D h`` with
+    ``D = diag(−1, −1, 1)`` (a half turn about the down axis, which leaves ``g`` alone): the
+    likelihood cannot tell the two apart, and ``h -> (h_x, 0, −h_z)`` flips the dip's sign. The
+    right-handed one is taken; a magnetometer truly mirrored relative to the accelerometer is
+    declared with an axis map (``--mag-axes``), which is applied before the fit.
+    """
+    if cal.mag is None or cal.accel is None or cal.magnetic is None:
+        return cal
+    if np.linalg.det(cal.mag.gain) >= 0:
+        return cal
+    D = np.diag([-1.0, -1.0, 1.0])
+    h = cal.magnetic
+    covariance = cal.covariance
+    if covariance is not None:
+        covariance = covariance.scaled({"mag.gain": -1.0, "dip_deg": -1.0})
+    return dataclasses.replace(
+        cal,
+        mag=dataclasses.replace(cal.mag, gain=-cal.mag.gain),
+        magnetic=np.array([h[0], h[1], -h[2]]),
+        rotations=cal.rotations @ D,
+        covariance=covariance,
+        options={**cal.options, "mag_handedness_flipped": True},
+    )
+
+
 def calibrate_log(
     log: Log,
     poses: PoseSet,
@@ -300,6 +339,7 @@ def calibrate_log(
             f"the poses cannot determine the calibration ({exc}); add orientations with each "
             "axis pointing up and down"
         ) from None
+    cal = right_handed(cal)
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
     rows = []

@@ -36,9 +36,11 @@ def _pose_rows(cal: Calibration, log: Any) -> list[NDArray[np.int64]]:
                 f"{log.path}: the calibration's pose {pose.get('index', len(rows))} ends at row "
                 f"{pose['stop']} but the log has {last} rows; give the log it was made from"
             )
-        lo, hi = np.searchsorted(log.index, [pose["start"], pose["stop"]])
-        if hi > lo:
-            rows.append(np.arange(lo, hi))
+        pieces = pose.get("pieces") or [[pose["start"], pose["stop"]]]
+        lo, hi = np.searchsorted(log.index, np.asarray(pieces, dtype=np.int64).T)
+        pose_rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
+        if pose_rows.size:
+            rows.append(pose_rows)
     return rows
 
 

@@ -96,8 +96,21 @@ def print_summary(
             f"threshold {still['threshold_std']:.3g} per-axis std "
             f"(noise floor {np.sqrt(still['noise_floor_var'] / 3):.3g})"
         )
-    table = Table(title="poses", title_justify="left")
-    for column in ("#", "start", "stop", "label", "samples", "std", "residual share", "flags"):
+    table = Table(
+        title="poses (share: the pose's part of the fit's residual cost J)", title_justify="left"
+    )
+    columns = (
+        "#",
+        "start",
+        "stop",
+        "label",
+        "orient.",
+        "samples",
+        "std",
+        "share",
+        "flags",
+    )
+    for column in columns:
         table.add_column(column, justify="right")
     n = len(cal.poses)
     for i, pose in enumerate(cal.poses):
@@ -108,6 +121,7 @@ def print_summary(
             str(pose.get("start", "")),
             str(pose.get("stop", "")),
             str(pose.get("label", "")),
+            str(pose.get("orientation", "")),
             str(pose.get("samples", "")),
             "" if std is None else f"{std:.3g}",
             "" if share is None else f"{100 * share:.1f} %",
