@@ -256,18 +256,20 @@ def test_report_errors(files, tmp_path, monkeypatch):
     user_error("report", files["cal"], files["session"], match="fieldcal[plot]")
 
 
-def test_mirrored_magnetometer_needs_mag_axes(tmp_path):
+def test_mirrored_magnetometer_is_declared_by_flag_or_axis_map(tmp_path):
     # a magnetometer whose z axis is mirrored relative to the accelerometer's (det < 0)
     session = fieldcal.simulate("paper", seed=8, mag_axes=np.diag([1.0, 1.0, -1.0]))
     path = _pose_csv(tmp_path / "s.csv", session.accel, session.mag)
     truth = session.truth.dip_deg
-    out = run("calibrate", path, "-o", tmp_path / "a.json").output
-    # without the map the data cannot tell its handedness: right-handed twin, dip sign flipped
-    assert "right-handed twin" in out
+    run("calibrate", path, "-o", tmp_path / "a.json")
+    # undeclared, the data cannot tell its handedness: the right-handed twin, dip sign flipped
     a = fieldcal.Calibration.from_json((tmp_path / "a.json").read_text())
-    assert abs(a.dip_deg + truth) < 1.0
+    assert abs(a.dip_deg + truth) < 1.0 and np.linalg.det(a.mag.gain) > 0
+    run("calibrate", path, "--mag-mirrored", "-o", tmp_path / "m.json")
+    m = fieldcal.Calibration.from_json((tmp_path / "m.json").read_text())
+    assert abs(m.dip_deg - truth) < 1.0 and np.linalg.det(m.mag.gain) < 0
     out = run("calibrate", path, "--mag-axes", "+x+y-z", "-o", tmp_path / "b.json").output
-    assert "right-handed twin" not in out and "folded back" in out
+    assert "folded back" in out
     b = fieldcal.Calibration.from_json((tmp_path / "b.json").read_text())
     assert abs(b.dip_deg - truth) < 1.0
     # the folded calibration applies to the raw columns: |m| = 1 and the true dip per pose

@@ -55,7 +55,9 @@ def _full_calibration(seed=0) -> Calibration:
         options={"gamma": 1e-4, "nested": {"a": [1, 2]}},
         dip_std_deg=0.01,
         misalignment_std_deg=0.02,
-        covariance=ParameterCovariance(names, np.diag([1e-6, 4e-6, 1e-4])),
+        covariance=ParameterCovariance(
+            names, [[1e-6, 1e-7, 2e-7], [1e-7, 4e-6, 3e-7], [2e-7, 3e-7, 1e-4]]
+        ),
         diagnostics=Diagnostics(23.5, 23, 0.43, np.arange(15.0), "converged"),
         poses=tuple(
             {"index": i, "samples": 500, "start": 10 * i, "stop": 10 * i + 9} for i in range(15)
@@ -198,3 +200,21 @@ def test_calibration_is_immutable():
         cal.method = "x"
     with pytest.raises(ValueError):
         cal.accel.gain[0, 0] = 2.0
+
+
+def test_mag_handedness_twin_predicts_the_same_readings():
+    cal = _full_calibration()
+    assert np.linalg.det(cal.mag.gain) > 0
+    twin = cal.with_mag_handedness(mirrored=True)
+    assert np.linalg.det(twin.mag.gain) < 0
+    for before, after in zip(cal.predicted_means(), twin.predicted_means(), strict=True):
+        np.testing.assert_allclose(after, before, atol=1e-12)
+    assert twin.dip_deg == pytest.approx(-cal.dip_deg)
+    assert twin.misalignment_deg == pytest.approx(cal.misalignment_deg)
+    np.testing.assert_allclose(twin.gravity, cal.gravity)
+    np.testing.assert_allclose(np.linalg.det(twin.rotations), 1.0)
+    # accel.bias[0] vs mag.gain[1,2] changes sign; mag.gain[1,2] vs dip_deg (both flip) does not
+    assert twin.covariance.matrix[0, 1] == -cal.covariance.matrix[0, 1]
+    assert twin.covariance.matrix[1, 2] == cal.covariance.matrix[1, 2]
+    assert twin.with_mag_handedness(mirrored=False) == cal
+    assert cal.with_mag_handedness(mirrored=False) is cal

@@ -84,6 +84,7 @@ def calibrate(
     field_strength: float | None = None,
     noise: Any = None,
     body_frame: str = "accel",
+    mag_mirrored: bool = False,
     **options: Any,
 ) -> Calibration:
     """Calibrate an accelerometer and a magnetometer together from static poses.
@@ -109,6 +110,12 @@ def calibrate(
         fit's residuals.
     body_frame : {"accel", "mag"}
         Which sensor's gain is made symmetric, fixing the common body frame (Sec. 4.3).
+    mag_mirrored : bool
+        Whether the magnetometer's axes, as given, are mirrored relative to the
+        accelerometer's (a left-handed triad, e.g. the LSM9DS1's). Static poses cannot tell
+        this from a field in the opposite magnetic hemisphere (the dip's sign), so it is a
+        prior: by default the magnetometer's gain comes out with a positive determinant.
+        Remapping the axes to match the accelerometer beforehand is equivalent.
     **options
         Passed to the method (see its documentation), e.g. ``gamma`` for ``"greedy"``.
 
@@ -158,6 +165,7 @@ def calibrate(
         cal = fit_with_residual_noise(fit, stats, sources, warm_start=method == "mle", **kwargs)
     else:
         cal = fit(stats, noise_sources=sources, **kwargs)
+    cal = cal.with_mag_handedness(mag_mirrored)
     if gravity is not None or field_strength is not None:
         cal = cal.with_field_magnitudes(gravity, field_strength)
     return cal

@@ -177,16 +177,10 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
             noise=parse_noise(opts.get("noise")),
             mag_axes=opts.get("mag_axes"),
             P=P,
+            mag_mirrored=bool(opts.get("mag_mirrored")),
         )
     # the library's warnings (an implausible fit, ...) belong in the summary, not as tracebacks
     notes += [f"warning: {' '.join(str(w.message).split())}" for w in caught]
-    if cal.options.get("mag_handedness_flipped"):
-        notes.append(
-            "note: the fit's mirrored-magnetometer solution was replaced by its right-handed twin "
-            "(same likelihood, opposite dip sign): the data cannot tell them apart, so fieldcal "
-            "takes the magnetometer as right-handed in its axes; declare a mirrored one with "
-            "--mag-axes (e.g. +y+x-z)"
-        )
     return cal, poses, document(cal, poses), notes
 
 
@@ -208,6 +202,12 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
     help="Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
 )
 @click.option("--mag-axes", help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.")
+@click.option(
+    "--mag-mirrored",
+    is_flag=True,
+    help="The magnetometer's axes (after --mag-axes) are left-handed relative to the "
+    "accelerometer's; static data cannot tell this from the dip's sign.",
+)
 @_log_options
 @_detect_options
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON instead.")

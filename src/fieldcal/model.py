@@ -485,6 +485,33 @@ class Calibration(_ArrayDataclass):
         )
         return result
 
+    def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
+        """The twin of this result whose magnetometer has the requested handedness.
+
+        Static poses cannot tell a magnetometer mirrored relative to the accelerometer from an
+        unmirrored one in the opposite magnetic hemisphere: ``K_m R_i h`` is unchanged by
+        ``K_m → −K_m``, ``R_i → R_i D``, ``h → −D h`` with ``D = diag(−1, −1, 1)`` (a half turn
+        about the down axis, which leaves ``g`` alone), and ``h → (h_x, 0, −h_z)`` flips the
+        dip's sign. Both have the same likelihood; this picks ``det(K_m) > 0`` (``mirrored``
+        false: the magnetometer's axes as given form a right-handed triad, like the
+        accelerometer's) or ``det(K_m) < 0`` (a mirrored chip).
+        """
+        if self.mag is None or self.accel is None or self.magnetic is None:
+            return self
+        if (np.linalg.det(self.mag.gain) < 0) == bool(mirrored):
+            return self
+        h = self.magnetic
+        covariance = self.covariance
+        if covariance is not None:
+            covariance = covariance.scaled({"mag.gain": -1.0, "dip_deg": -1.0})
+        return dataclasses.replace(
+            self,
+            mag=dataclasses.replace(self.mag, gain=-self.mag.gain),
+            magnetic=np.array([h[0], h[1], -h[2]]),
+            rotations=self.rotations @ np.diag([-1.0, -1.0, 1.0]),
+            covariance=covariance,
+        )
+
     # ----------------------------------------------------------------- JSON
     def to_dict(self) -> dict[str, Any]:
         """The JSON document as Python objects (see ``docs/json-schema.md``)."""

@@ -280,34 +280,6 @@ def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
     return dataclasses.replace(cal, mag=new, covariance=covariance, options=options)
 
 
-def right_handed(cal: Calibration) -> Calibration:
-    """The right-handed twin of a fit whose magnetometer gain has a negative determinant.
-
-    ``K_m R_i h`` is unchanged by ``K_m -> −K_m``, ``R_i -> R_i D``, ``h -> −D h`` with
-    ``D = diag(−1, −1, 1)`` (a half turn about the down axis, which leaves ``g`` alone): the
-    likelihood cannot tell the two apart, and ``h -> (h_x, 0, −h_z)`` flips the dip's sign. The
-    right-handed one is taken; a magnetometer truly mirrored relative to the accelerometer is
-    declared with an axis map (``--mag-axes``), which is applied before the fit.
-    """
-    if cal.mag is None or cal.accel is None or cal.magnetic is None:
-        return cal
-    if np.linalg.det(cal.mag.gain) >= 0:
-        return cal
-    D = np.diag([-1.0, -1.0, 1.0])
-    h = cal.magnetic
-    covariance = cal.covariance
-    if covariance is not None:
-        covariance = covariance.scaled({"mag.gain": -1.0, "dip_deg": -1.0})
-    return dataclasses.replace(
-        cal,
-        mag=dataclasses.replace(cal.mag, gain=-cal.mag.gain),
-        magnetic=np.array([h[0], h[1], -h[2]]),
-        rotations=cal.rotations @ D,
-        covariance=covariance,
-        options={**cal.options, "mag_handedness_flipped": True},
-    )
-
-
 def calibrate_log(
     log: Log,
     poses: PoseSet,
@@ -318,6 +290,7 @@ def calibrate_log(
     noise: Any = None,
     mag_axes: str | None = None,
     P: Array | None = None,
+    mag_mirrored: bool = False,
 ) -> Calibration:
     """Calibrate from the poses and attach each pose's log position to ``cal.poses``.
 
@@ -333,13 +306,13 @@ def calibrate_log(
             gravity=gravity,
             field_strength=field_strength,
             noise=noise,
+            mag_mirrored=mag_mirrored,
         )
     except np.linalg.LinAlgError as exc:
         raise InputError(
             f"the poses cannot determine the calibration ({exc}); add orientations with each "
             "axis pointing up and down"
         ) from None
-    cal = right_handed(cal)
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
     rows = []
