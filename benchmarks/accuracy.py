@@ -23,10 +23,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import fieldcal  # noqa: E402
-from _oracle import oracle  # noqa: E402
-from _report import pin_blas_threads, stamp, write_section  # noqa: E402
-from fieldcal.metrics import reconstruction_error  # noqa: E402
+from _oracle import oracle
+from _report import pin_blas_threads, stamp, write_section
+
+import fieldcal
+from fieldcal.metrics import reconstruction_error
 
 SETTINGS = {
     "paper": ("Table 1: N = 15, Δ ~ U{400..600}, gains ±10 %, biases ±1", {}),
@@ -114,9 +115,9 @@ def main() -> None:
         allr["fail"].append(r["fail"] * r["sessions"])
         allr["sessions"].append(r["sessions"])
     n_all = int(sum(allr["sessions"]))
-    n_fail = int(round(sum(allr["fail"])))
+    n_fail = round(sum(allr["fail"]))
     text = (
-        "## Accuracy of method=\"mle\" against the oracle\n\n"
+        '## Accuracy of method="mle" against the oracle\n\n'
         + stamp("python benchmarks/accuracy.py" + (f" --sessions {total}" if total != 1050 else ""))
         + "\nOracle: `scipy.optimize.least_squares` (trf, finite differences) on the same "
         "likelihood started at the true parameters. δ: the two sensors' Eq. 19 errors combined "

@@ -311,7 +311,8 @@ def report(header, table, sweep, n_values, methods, notes, args, wall):
         f"{sum(is_stuck)}/{runs} runs, of which {stuck_conv} stopped by the γ rule (a poor "
         f"minimum or a plateau where J falls by less than γ per iteration) and {stuck_cap} "
         f"were still descending at the cap of {cap} iterations. Within 1 χ² unit of the "
-        f"oracle's cost: {same}/{runs}. Runs where a sign fix (Sec. 4.2) raised J: "
+        f"oracle's cost: {same}/{runs}. Runs with a sign fix (Sec. 4.2): "
+        f"{sum(r['sign_fixes'] > 0 for r in table)}/{runs}; runs where one raised J: "
         f"{sum(r['cost_increases'] > 0 for r in table)}/{runs}.",
         "",
     ]

@@ -20,7 +20,7 @@ def _single_shots(seed, n_poses, sigma_a, sigma_m):
 
 
 def test_isotropic_noise_is_recovered_per_sensor():
-    s, accel, mag = _single_shots(3, 300, 2e-3, 5e-3)
+    _, accel, mag = _single_shots(3, 300, 2e-3, 5e-3)
     cal = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]))
     assert cal.accel.noise_source == cal.mag.noise_source == "residuals"
     sa, sm = np.sqrt(cal.accel.noise_cov[0, 0]), np.sqrt(cal.mag.noise_cov[0, 0])
@@ -45,7 +45,7 @@ def test_error_bars_cover_with_residual_noise():
 
 
 def test_user_noise_replaces_the_estimate_and_one_sensor_alone_works():
-    s, accel, mag = _single_shots(5, 30, 2e-3, 2e-3)
+    _, accel, mag = _single_shots(5, 30, 2e-3, 2e-3)
     cal = fieldcal.calibrate(list(accel[:, None]), list(mag[:, None]), noise=2e-3)
     assert cal.accel.noise_source == "user" and np.all(cal.accel.noise_cov_std == 0)
     assert "residuals" not in cal.diagnostics.status
@@ -59,7 +59,7 @@ def test_user_noise_replaces_the_estimate_and_one_sensor_alone_works():
 
 def test_fixed_point_is_generic_over_methods():
     """Without warm start (as for the greedy method) the same fixed point is reached."""
-    s, accel, mag = _single_shots(8, 20, 2e-3, 4e-3)
+    _, accel, mag = _single_shots(8, 20, 2e-3, 4e-3)
     stats = fieldcal.stats_from_means(accel, mag)
     sources = {"accel": "residuals", "mag": "residuals"}
     cold = fit_with_residual_noise(mle.fit, stats, sources, warm_start=False)

@@ -99,8 +99,9 @@ def fit_with_residual_noise(
         return fit(stats, noise_sources=sources, **fit_kwargs)
     variances = {s: _initial_variance(getattr(stats, s).means) for s in residual}
     cal: Calibration | None = None
-    iterations = 0
-    for iterations in range(1, max_iter + 1):
+    rounds = 0
+    for _ in range(max_iter):
+        rounds += 1
         current = _with_cov(stats, variances)
         kwargs = dict(fit_kwargs)
         if warm_start and cal is not None:
@@ -123,7 +124,7 @@ def fit_with_residual_noise(
         cal = _widen(cal, nu / (nu - 2.0))
     note = (
         f"noise of {' and '.join(residual)} estimated from the residuals "
-        f"({iterations} rounds); the χ² statistic equals its degrees of freedom by "
+        f"({rounds} rounds); the χ² statistic equals its degrees of freedom by "
         "construction and does not test the fit"
     )
     diag = cal.diagnostics

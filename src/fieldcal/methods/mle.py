@@ -19,12 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..diagnostics import certify, pose_table
-from ..model import (
-    Calibration,
-    SensorCalibration,
-    _nearest_signed_permutation,
-    _orthogonal_polar_factor,
-)
+from ..model import Calibration, SensorCalibration
 from ..poses import PoseStats
 from .mle_lm import Result, levenberg_marquardt, normal_equations
 from .mle_model import Problem, State, build_problem, field
@@ -37,14 +32,16 @@ DEFAULTS: dict[str, Any] = {
     "max_iter": 200,  # LM iterations per start
     "tol": 1e-10,  # stop when a step lowers J by less than tol·(1 + J)
     "p_min": 1e-4,  # certificate: a p-value below this is implausible
-    "mag_mirrored": None,  # None: majority rule; True/False: det(K_a K_m) < 0 or > 0
+    "mag_mirrored": False,  # the sign twin with det(K_a K_m) < 0 (True) or > 0 (False)
     "initial": None,  # a Calibration to start from instead of the closed-form starts
 }
 #: Closed-form starts (accelerometer's, magnetometer's ellipsoid family), in order: the first two
 #: always run, the others when the poses are few or the certificate is doubtful.
 _FAMILIES = ("full", "axes", "sphere")
-STARTS = (("full", "full"), ("axes", "axes")) + tuple(
-    (a, m) for a in _FAMILIES for m in _FAMILIES if a != m or a == "sphere"
+STARTS = (
+    ("full", "full"),
+    ("axes", "axes"),
+    *((a, m) for a in _FAMILIES for m in _FAMILIES if a != m or a == "sphere"),
 )
 #: Below this many poses every start runs (the likelihood has more local minima).
 FEW_POSES = 12
@@ -96,8 +93,10 @@ def check_spread(stats: PoseStats) -> None:
             )
 
 
-def _run(problem: Problem, state: State, opts: dict[str, Any]) -> Result:
-    return levenberg_marquardt(problem, state, max_iter=opts["max_iter"], tol=opts["tol"])
+def _run(problem: Problem, state: State, opts: dict[str, Any], best: float | None) -> Result:
+    return levenberg_marquardt(
+        problem, state, max_iter=opts["max_iter"], tol=opts["tol"], known_minimum=best
+    )
 
 
 def _state_from_calibration(problem: Problem, cal: Calibration) -> State:
@@ -123,14 +122,10 @@ def _canonical(problem: Problem, state: State, mirrored: bool | None) -> State:
         state.rotations = state.rotations @ np.diag([-1.0, -1.0, 1.0])
     state.dip = float(np.arctan2(np.sin(state.dip), np.cos(state.dip)))
     other = "mag" if problem.frame == "accel" else "accel"
-    K = state.gains[other]
-    if mirrored is None:
-        # K and −K fit equally (see flip_other); prefer the wiring with more positive axes
-        S = _nearest_signed_permutation(_orthogonal_polar_factor(K))
-        flip = float(S.sum()) < 0
-    else:
-        det = np.linalg.det(K) * np.linalg.det(state.gains[problem.frame])
-        flip = (det < 0) != bool(mirrored)
+    # K and −K fit equally (see flip_other): the stated handedness decides, as in
+    # Calibration.with_mag_handedness, which fieldcal.calibrate applies afterwards
+    det = np.linalg.det(state.gains[other]) * np.linalg.det(state.gains[problem.frame])
+    flip = bool(det < 0) != bool(mirrored)
     return flip_other(problem, state, other) if flip else state
 
 
@@ -216,7 +211,7 @@ def fit(
         nonlocal best, total_iter
         if state is None:
             return
-        res = _run(problem, state, opts)
+        res = _run(problem, state, opts, None if best is None else best.cost)
         total_iter += res.iterations
         tried.append(label)
         if best is None or res.cost < best.cost - 1e-9 * (1 + res.cost):
@@ -323,7 +318,7 @@ def _degenerate_message(problem: Problem, state: State, cond: float) -> str:
     """Name the body axis the gravity (or field) directions cover least."""
     s = problem.sensors[0]
     u = state.rotations @ field(problem, s, state.dip)
-    w, V = np.linalg.eigh(u.T @ u)
+    _, V = np.linalg.eigh(u.T @ u)
     ax = _axis_name(V[:, 0])
     return (
         f"mle: the poses barely determine the calibration (reduced system condition number "

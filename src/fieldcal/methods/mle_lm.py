@@ -100,12 +100,18 @@ def levenberg_marquardt(
     max_iter: int = 100,
     tol: float = 1e-10,
     lam: float = 1e-4,
+    known_minimum: float | None = None,
 ) -> Result:
     """Minimise Eq. 8's J from ``state``.
 
-    Stops when an accepted step lowers J by less than ``tol·(1 + J)``: with Gauss-Newton's
-    quadratic convergence the next step would change J by far less than anything
-    statistically meaningful (J is a χ² variate of size ~dof).
+    Stops when an accepted step lowers J by less than ``tol·(1 + J)``, or by less than 1e-8 J
+    with the linear model predicting the decrease to 10 %: with Gauss-Newton's quadratic
+    convergence the next step would change J by far less than anything statistically
+    meaningful (J is a χ² variate of size ~dof).
+
+    ``known_minimum``: the J of a minimum already found from another start. Once the iterates
+    are in Gauss-Newton's quadratic regime and the linear model predicts that very value, this
+    start is heading for the same minimum and is abandoned (saves its last iterations).
     """
     e = residuals(problem, state)
     cost = float(np.sum(e * e))
@@ -113,9 +119,17 @@ def levenberg_marquardt(
     converged = False
     it = 0
     ne = normal_equations(problem, state, e)
+    last_rho = 0.0
     while it < max_iter:
         it += 1
         dg, dp, pred = solve_step(ne, lam)
+        if (
+            known_minimum is not None
+            and abs(last_rho - 1.0) < 0.1
+            and abs(cost - pred - known_minimum) <= 1e-6 * (1.0 + known_minimum)
+        ):
+            converged = True
+            break
         if not np.all(np.isfinite(dg)) or not np.all(np.isfinite(dp)):
             lam *= 10.0
             continue
@@ -125,11 +139,14 @@ def levenberg_marquardt(
         gain = cost - cost_new
         rho = gain / pred if pred > 0 else -1.0
         if rho > 0 and np.isfinite(cost_new):
-            state, e = trial, e_new
+            state, e, last_rho = trial, e_new, rho
             lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
             cost = cost_new
-            if gain <= tol * (1.0 + cost) or cost < 1e-300:
+            # In Gauss-Newton's quadratic regime (ρ ≈ 1) the next step would gain about
+            # (gain/J)² relative: stop now instead of paying for one more linearisation.
+            quadratic = abs(rho - 1.0) < 0.1 and gain <= 1e-8 * cost
+            if gain <= tol * (1.0 + cost) or quadratic or cost < 1e-300:
                 converged = True
                 break
             ne = normal_equations(problem, state, e)

@@ -53,6 +53,7 @@ class Problem:
     sensors: tuple[str, ...]
     frame: str
     n: int
+    chol: dict[str, Array]
     linv: dict[str, Array]
     sqrt_w: dict[str, Array]
     mu_w: dict[str, Array]
@@ -101,12 +102,12 @@ def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Probl
     sensors = tuple(s for s in SENSORS if getattr(stats, s) is not None)
     if frame not in sensors:
         frame = sensors[0]
-    linv, sqrt_w, mu_w, gs, bs = {}, {}, {}, {}, {}
+    chol, linv, sqrt_w, mu_w, gs, bs = {}, {}, {}, {}, {}, {}
     offset = 0
     for s in sensors:
         st = getattr(stats, s)
-        L = np.linalg.cholesky(np.asarray(covs[s], dtype=float))
-        linv[s] = np.linalg.inv(L)
+        chol[s] = np.linalg.cholesky(np.asarray(covs[s], dtype=float))
+        linv[s] = np.linalg.inv(chol[s])
         sqrt_w[s] = np.sqrt(np.asarray(st.counts, dtype=float))
         mu_w[s] = st.means @ linv[s].T
         size = 6 if s == frame else 9
@@ -115,18 +116,20 @@ def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Probl
         offset += size + 3
     dip_index = offset if len(sensors) == 2 else None
     n_global = offset + (1 if dip_index is not None else 0)
-    return Problem(sensors, frame, stats.n_poses, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global)
+    return Problem(
+        sensors, frame, stats.n_poses, chol, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global
+    )
 
 
 def reweighted(problem: Problem, covs: dict[str, Array]) -> Problem:
     """The same problem with other noise covariances (for the noise fixed point)."""
-    linv, mu_w = dict(problem.linv), dict(problem.mu_w)
+    chol, linv, mu_w = dict(problem.chol), dict(problem.linv), dict(problem.mu_w)
     for s, cov in covs.items():
-        old_L = np.linalg.inv(problem.linv[s])
-        means = problem.mu_w[s] @ old_L.T
-        linv[s] = np.linalg.inv(np.linalg.cholesky(cov))
+        means = problem.mu_w[s] @ problem.chol[s].T
+        chol[s] = np.linalg.cholesky(cov)
+        linv[s] = np.linalg.inv(chol[s])
         mu_w[s] = means @ linv[s].T
-    return replace(problem, linv=linv, mu_w=mu_w)
+    return replace(problem, chol=chol, linv=linv, mu_w=mu_w)
 
 
 def field(problem: Problem, sensor: str, dip: float) -> Array:

@@ -33,38 +33,29 @@ def _sqrtm_spd(M: Array) -> tuple[Array, Array]:
 
 def ellipsoid(y: Array, weights: Array, model: str = "full") -> tuple[Array, Array] | None:
     """Weighted algebraic fit; returns (symmetric gain K_y, centre) or None if not an ellipsoid."""
-    c0 = np.average(y, axis=0, weights=weights)
-    s0 = np.sqrt(np.average(np.sum((y - c0) ** 2, axis=1), weights=weights))
+    wsum = weights.sum()
+    c0 = weights @ y / wsum
+    d = y - c0
+    s0 = np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum)
     if not s0 > 0:
         return None
-    z = (y - c0) / s0
+    z = d / s0
     x1, x2, x3 = z.T
-    one = np.ones(len(z))
     if model == "full":
-        cols = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
+        quad = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
     elif model == "axes":
-        cols = [x1 * x1, x2 * x2, x3 * x3]
+        quad = [x1 * x1, x2 * x2, x3 * x3]
     else:
-        cols = [x1 * x1 + x2 * x2 + x3 * x3]
-    D = np.stack([*cols, 2 * x1, 2 * x2, 2 * x3, one], axis=1) * np.sqrt(weights)[:, None]
-    D /= np.sqrt(np.sum(weights))
+        quad = [x1 * x1 + x2 * x2 + x3 * x3]
+    D = np.column_stack([*quad, 2 * z, np.ones(len(z))])
+    D *= np.sqrt(weights / wsum)[:, None]
     if model == "full":
         # Tie-breaker when the poses do not determine all 9 parameters (N = 8): the member of
         # the quadric pencil closest to a sphere. Weak enough to leave well-posed fits alone.
-        reg = np.zeros((5, 10))
-        reg[0, [0, 1]] = (1, -1)
-        reg[1, [1, 2]] = (1, -1)
-        reg[2, 3] = reg[3, 4] = reg[4, 5] = 1.0
-        D = np.vstack([D, 1e-4 * reg])
+        D = np.vstack([D, _SPHERE_PULL])
     theta = np.linalg.svd(D, full_matrices=False)[2][-1]
     if model == "full":
-        A = np.array(
-            [
-                [theta[0], theta[3], theta[4]],
-                [theta[3], theta[1], theta[5]],
-                [theta[4], theta[5], theta[2]],
-            ]
-        )
+        A = theta[_SYM_INDEX]
     elif model == "axes":
         A = np.diag(theta[:3])
     else:
@@ -74,12 +65,20 @@ def ellipsoid(y: Array, weights: Array, model: str = "full") -> tuple[Array, Arr
         zc = -np.linalg.solve(A, beta)
     except np.linalg.LinAlgError:
         return None
-    k = zc @ A @ zc - gamma
-    M = A / k
-    if not np.all(np.isfinite(M)) or np.linalg.eigvalsh(M)[0] <= 0:
+    M = A / (zc @ A @ zc - gamma)
+    if not np.all(np.isfinite(M)):
         return None
-    _, K = _sqrtm_spd(M)
-    return s0 * K, c0 + s0 * zc
+    w, V = np.linalg.eigh(M)
+    if w[0] <= 0:
+        return None
+    return s0 * (V / np.sqrt(w)) @ V.T, c0 + s0 * zc
+
+
+_SYM_INDEX = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])
+_SPHERE_PULL = np.zeros((5, 10))
+_SPHERE_PULL[0, [0, 1]] = (1e-4, -1e-4)
+_SPHERE_PULL[1, [1, 2]] = (1e-4, -1e-4)
+_SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
 
 
 def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
@@ -89,7 +88,7 @@ def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Arra
     if fit is None:
         return None
     Ky, cy = fit
-    L = np.linalg.inv(problem.linv[sensor])
+    L = problem.chol[sensor]
     K = L @ Ky
     # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
     P, _ = _sqrtm_spd(K @ K.T)
@@ -97,9 +96,13 @@ def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Arra
 
 
 def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
-    means = problem.mu_w[sensor] @ np.linalg.inv(problem.linv[sensor]).T
+    means = problem.mu_w[sensor] @ problem.chol[sensor].T
     u = np.linalg.solve(K, (means - b).T).T
     return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+#: Poses below which the constant-angle system's two-dimensional pencil is searched.
+PENCIL_BELOW = 12
 
 
 def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
@@ -108,7 +111,8 @@ def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
     rows *= np.sqrt(weights)[:, None]
     Vt = np.linalg.svd(rows, full_matrices=len(rows) < 10)[2]
     Z = Vt[-2:]  # smallest two: the pencil holding the answer even when N is small
-    phi = np.linspace(0.0, np.pi, 37)[:-1]
+    # with many poses the smallest singular vector is the answer; search the pencil otherwise
+    phi = np.linspace(0.0, np.pi, 37)[:-1] if len(u) < PENCIL_BELOW else np.array([np.pi / 2])
     cand = np.cos(phi)[:, None] * Z[0] + np.sin(phi)[:, None] * Z[1]
     Ms = cand[:, :9].reshape(-1, 3, 3)
     Uq, _, Vq = np.linalg.svd(Ms)

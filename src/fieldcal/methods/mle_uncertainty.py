@@ -100,7 +100,9 @@ def misalignment_std(problem: Problem, state: State, C: Array) -> float | None:
     S = _nearest_signed_permutation(_polar(Km) @ _polar(Ka).T)
     # differences over every gain parameter, all perturbed gains in one batch
     cols, Kas, Kms, steps = [], [Ka], [Km], []
-    for s in ("accel", "mag"):
+    # a symmetric positive definite gain has U = I for any small symmetric change: only the
+    # other sensor's gain moves the angle
+    for s in [k for k in ("accel", "mag") if not problem.symmetric(k)]:
         sl = problem.gain_slice[s]
         size = sl.stop - sl.start
         h = 1e-6 * max(1.0, float(np.max(np.abs(state.gains[s]))))
