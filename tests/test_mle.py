@@ -324,3 +324,15 @@ def test_lm_decreases_the_cost_monotonically_from_a_poor_start():
     e0 = mle_model.residuals(problem, start)
     res = mle_lm.levenberg_marquardt(problem, start)
     assert res.cost < np.sum(e0**2) and res.converged
+
+
+@pytest.mark.parametrize("seed", [20043, 20091])
+def test_eight_poses_reach_the_oracle_through_the_pencil_starts(seed):
+    """N = 8 (2 dof): each ellipsoid alone is underdetermined; the joint pencil search helps."""
+    s = fieldcal.simulate("few_poses", seed=seed, n_poses=8)
+    stats = fieldcal.summarize(s.accel, s.mag)
+    cal = fieldcal.calibrate(s.accel, s.mag)
+    _, _, res = oracle(stats, s.truth)
+    assert cal.cost <= 2 * res.cost * (1 + 1e-7)
+    assert any(label.startswith("pencil") for label in cal.options["starts"])
+    assert cal.converged and cal.diagnostics.p_value > 1e-4

@@ -23,7 +23,7 @@ from ..model import Calibration, SensorCalibration
 from ..poses import PoseStats
 from .mle_lm import Result, levenberg_marquardt, normal_equations
 from .mle_model import Problem, State, build_problem, field
-from .mle_start import closed_form_start, flip_other, min_rotations
+from .mle_start import closed_form_start, few_pose_starts, flip_other, min_rotations
 from .mle_uncertainty import uncertainty, wishart_std
 
 __all__ = ["fit", "sensor_cost_and_dof"]
@@ -45,6 +45,8 @@ STARTS = (
 )
 #: Below this many poses every start runs (the likelihood has more local minima).
 FEW_POSES = 12
+#: Below this many poses the ellipsoids' pencils are searched jointly for further starts.
+PENCIL_POSES = 10
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
 #: Jacobi-scaled condition number of the reduced system above which the poses are degenerate.
@@ -236,6 +238,9 @@ def fit(
         for model in starts:
             if label(model) not in tried:
                 consider(closed_form_start(problem, model), label(model))
+        if n < PENCIL_POSES:
+            for k, state in enumerate(few_pose_starts(problem)):
+                consider(state, f"pencil{k}")
     if best is None:
         raise ValueError(
             "no closed-form start: the pose means do not outline an ellipsoid; "

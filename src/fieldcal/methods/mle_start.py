@@ -146,6 +146,11 @@ def closed_form_start(problem: Problem, model: str | tuple[str, str] = "full") -
         if fit is None:
             return None
         fits[s] = fit
+    return start_from_fits(problem, fits)
+
+
+def start_from_fits(problem: Problem, fits: dict[str, tuple[Array, Array]]) -> State:
+    """Steps 2-3: orientation and dip from the constant angle, rotations by Wahba."""
     if not problem.joint:
         s = problem.sensors[0]
         K, b = fits[s]
@@ -198,3 +203,85 @@ def flip_other(problem: Problem, state: State, other: str) -> State:
     state.dip = -state.dip
     state.rotations = state.rotations @ T
     return state
+
+
+def _pencil(y: Array, weights: Array, n_grid: int) -> tuple[Array, Array, Array]:
+    """Ellipsoids through few points (N = 8, 9): the pencil of the two smallest singular vectors.
+
+    Returns per grid member the symmetric gain ``K_y``, the centre (whitened coordinates) and a
+    validity mask (an ellipsoid, not another quadric).
+    """
+    wsum = weights.sum()
+    c0 = weights @ y / wsum
+    d = y - c0
+    s0 = np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum)
+    z = d / s0
+    x1, x2, x3 = z.T
+    D = np.column_stack(
+        [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3, 2 * z, np.ones(len(z))]
+    )
+    D *= np.sqrt(weights / wsum)[:, None]
+    Z = np.linalg.svd(D, full_matrices=True)[2][-2:]
+    t = np.linspace(0.0, np.pi, n_grid, endpoint=False)
+    theta = np.cos(t)[:, None] * Z[0] + np.sin(t)[:, None] * Z[1]
+    A = theta[:, _SYM_INDEX]
+    beta, gamma = theta[:, 6:9], theta[:, 9]
+    ok = np.abs(np.linalg.det(A)) > 1e-12
+    A = np.where(ok[:, None, None], A, np.eye(3))
+    zc = -np.linalg.solve(A, beta[:, :, None])[:, :, 0]
+    k = np.einsum("ti,tij,tj->t", zc, A, zc) - gamma
+    M = A / np.where(np.abs(k) > 1e-300, k, 1.0)[:, None, None]
+    w, V = np.linalg.eigh(M)
+    ok &= np.all(w > 0, axis=1)
+    w = np.where(w > 0, w, 1.0)
+    K = s0 * (V / np.sqrt(w)[:, None, :]) @ V.transpose(0, 2, 1)
+    return K, c0 + s0 * zc, ok
+
+
+def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[State]:
+    """Starts for 8-9 poses, where each sensor's ellipsoid is not determined by its own poses.
+
+    Every pair of members of the two sensors' quadric pencils is scored by how well the poses'
+    gravity and field directions keep a constant angle (step 2, with its pencil search); the
+    ``keep`` best pairs become starts. Batched over all pairs.
+    """
+    if not problem.joint:
+        return []
+    w = np.minimum(problem.sqrt_w["accel"], problem.sqrt_w["mag"]) ** 2
+    dirs, pens = {}, {}
+    for s in ("accel", "mag"):
+        K, c, ok = _pencil(problem.mu_w[s], problem.sqrt_w[s] ** 2, n_grid)
+        y = problem.mu_w[s]
+        u = np.linalg.solve(K[:, None], (y[None] - c[:, None])[..., None])[..., 0]
+        u /= np.linalg.norm(u, axis=-1, keepdims=True)
+        dirs[s], pens[s] = u, (K, c, ok)
+    ia, im = np.nonzero(pens["accel"][2][:, None] & pens["mag"][2][None, :])
+    if len(ia) == 0:
+        return []
+    u, v = dirs["accel"][ia], dirs["mag"][im]  # (P, N, 3)
+    rows = (
+        np.concatenate(
+            [np.einsum("pni,pnj->pnij", u, v).reshape(len(ia), -1, 9), -np.ones((*u.shape[:2], 1))],
+            axis=2,
+        )
+        * np.sqrt(w)[None, :, None]
+    )
+    Z = np.linalg.svd(rows, full_matrices=True)[2][:, -2:]  # (P, 2, 10)
+    phi = np.linspace(0.0, np.pi, 24, endpoint=False)
+    cand = np.cos(phi)[None, :, None] * Z[:, None, 0] + np.sin(phi)[None, :, None] * Z[:, None, 1]
+    Uq, _, Vq = np.linalg.svd(cand[..., :9].reshape(len(ia), len(phi), 3, 3))
+    Q = Uq @ Vq
+    proj = np.einsum("pni,pfij,pnj->pfn", u, Q, v)
+    c = proj @ w / w.sum()
+    resid = (((proj - c[..., None]) ** 2) @ w).min(axis=1)
+    starts = []
+    for p in np.argsort(resid)[:keep]:
+        fits = {}
+        for s, i in (("accel", ia[p]), ("mag", im[p])):
+            K, centre, _ = pens[s]
+            L = problem.chol[s]
+            Kr = L @ K[i]
+            P, _ = _sqrtm_spd(Kr @ Kr.T)
+            fits[s] = (P, L @ centre[i])
+        starts.append(start_from_fits(problem, fits))
+    return starts
