@@ -46,7 +46,7 @@ STARTS = (
 #: Below this many poses every start runs (the likelihood has more local minima).
 FEW_POSES = 12
 #: Below this many poses the ellipsoids' pencils are searched jointly for further starts.
-PENCIL_POSES = 10
+PENCIL_POSES = 12
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
 #: Jacobi-scaled condition number of the reduced system above which the poses are degenerate.

@@ -206,7 +206,7 @@ def flip_other(problem: Problem, state: State, other: str) -> State:
 
 
 def _pencil(y: Array, weights: Array, n_grid: int) -> tuple[Array, Array, Array]:
-    """Ellipsoids through few points (N = 8, 9): the pencil of the two smallest singular vectors.
+    """Ellipsoids through few points (N < 12): the pencil of the two smallest singular vectors.
 
     Returns per grid member the symmetric gain ``K_y``, the centre (whitened coordinates) and a
     validity mask (an ellipsoid, not another quadric).
@@ -239,7 +239,7 @@ def _pencil(y: Array, weights: Array, n_grid: int) -> tuple[Array, Array, Array]
 
 
 def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[State]:
-    """Starts for 8-9 poses, where each sensor's ellipsoid is not determined by its own poses.
+    """Starts for few poses (N < 12); with 8-9 each sensor's ellipsoid is not even determined.
 
     Every pair of members of the two sensors' quadric pencils is scored by how well the poses'
     gravity and field directions keep a constant angle (step 2, with its pencil search); the
