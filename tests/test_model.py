@@ -218,3 +218,23 @@ def test_mag_handedness_twin_predicts_the_same_readings():
     assert twin.covariance.matrix[1, 2] == cal.covariance.matrix[1, 2]
     assert twin.with_mag_handedness(mirrored=False) == cal
     assert cal.with_mag_handedness(mirrored=False) is cal
+
+
+def test_mag_handedness_twin_in_the_magnetometer_frame_keeps_its_gain_symmetric():
+    truth = fieldcal.simulate("paper", seed=5).truth
+    R, Ka, Km, g, h = canonical_gauge(
+        truth.rotations, truth.accel.gain, truth.mag.gain, truth.gravity, truth.magnetic, "mag"
+    )
+    cal = Calibration(
+        accel=SensorCalibration(Ka, truth.accel.bias, truth.accel.noise_cov),
+        mag=SensorCalibration(Km, truth.mag.bias, truth.mag.noise_cov),
+        gravity=g,
+        magnetic=h,
+        rotations=R,
+        method="mle",
+    )
+    twin = cal.with_mag_handedness(mirrored=True)
+    np.testing.assert_array_equal(twin.mag.gain, cal.mag.gain)
+    assert np.linalg.det(twin.accel.gain) < 0 and twin.dip_deg == pytest.approx(-cal.dip_deg)
+    for before, after in zip(cal.predicted_means(), twin.predicted_means(), strict=True):
+        np.testing.assert_allclose(after, before, atol=1e-12)

@@ -72,3 +72,18 @@ def test_bad_input_is_a_one_line_value_error(accel, mag, message):
     with pytest.raises(ValueError, match=message) as info:
         fieldcal.summarize(accel, mag)
     assert "\n" not in str(info.value)
+
+
+def test_covariance_keeps_its_precision_under_large_offsets():
+    """24-bit counts: offsets of 4e6 and a noise of 2 counts must not cancel away Eq. 7."""
+    rng = np.random.default_rng(9)
+    centre = np.array([4.0e6, -3.5e6, 4.2e6])
+    directions = rng.normal(size=(20, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    poses = [centre + 1e4 * d + 2.0 * rng.standard_normal((300, 3)) for d in directions]
+    stats = fieldcal.summarize(poses)
+    scatter = sum((len(p) - 1) * np.cov((p - p[0]).T) for p in poses)
+    # 1e-6 counts² is 1e-7 of the variance: ~10⁴ below Eq. 7's own sampling error; without the
+    # shift, XᵀX − ΣΔμμᵀ would cancel ~1e13 against 1e13 and keep no digit of the 4 counts²
+    np.testing.assert_allclose(stats.accel.cov, scatter / (20 * 300 - 20), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(stats.accel.means, [p.mean(axis=0) for p in poses], rtol=1e-14)

@@ -489,26 +489,40 @@ class Calibration(_ArrayDataclass):
         """The twin of this result whose magnetometer has the requested handedness.
 
         Static poses cannot tell a magnetometer mirrored relative to the accelerometer from an
-        unmirrored one in the opposite magnetic hemisphere: ``K_m R_i h`` is unchanged by
-        ``K_m → −K_m``, ``R_i → R_i D``, ``h → −D h`` with ``D = diag(−1, −1, 1)`` (a half turn
-        about the down axis, which leaves ``g`` alone), and ``h → (h_x, 0, −h_z)`` flips the
-        dip's sign. Both have the same likelihood; this picks ``det(K_m) > 0`` (``mirrored``
-        false: the magnetometer's axes as given form a right-handed triad, like the
-        accelerometer's) or ``det(K_m) < 0`` (a mirrored chip).
+        unmirrored one in the opposite magnetic hemisphere. Negating the gain of the sensor that
+        does not define the body frame, with ``h → (h_x, 0, −h_z)`` (the dip's sign flips) and
+        ``R_i → R_i D``, predicts identical readings: ``D = diag(−1, −1, 1)`` (a half turn about
+        the down axis, leaving ``g`` alone) when the magnetometer's gain is negated,
+        ``D = diag(1, −1, −1)`` (a half turn about north, leaving ``h``'s new direction
+        consistent) when the accelerometer's is. Both have the same likelihood; this picks
+        ``det(K_a K_m) > 0`` (``mirrored`` false: both triads right-handed as given) or
+        ``det(K_a K_m) < 0`` (a mirrored chip).
         """
         if self.mag is None or self.accel is None or self.magnetic is None:
             return self
-        if (np.linalg.det(self.mag.gain) < 0) == bool(mirrored):
+        relative = np.linalg.det(self.accel.gain) * np.linalg.det(self.mag.gain)
+        if (relative < 0) == bool(mirrored):
             return self
+        Ka = self.accel.gain
+        accel_frame = np.allclose(Ka, Ka.T, rtol=0, atol=1e-9 * np.abs(Ka).max())
+        name, D = (
+            ("mag", np.diag([-1.0, -1.0, 1.0]))
+            if accel_frame
+            else (
+                "accel",
+                np.diag([1.0, -1.0, -1.0]),
+            )
+        )
+        sensor = getattr(self, name)
         h = self.magnetic
         covariance = self.covariance
         if covariance is not None:
-            covariance = covariance.scaled({"mag.gain": -1.0, "dip_deg": -1.0})
+            covariance = covariance.scaled({f"{name}.gain": -1.0, "dip_deg": -1.0})
         return dataclasses.replace(
             self,
-            mag=dataclasses.replace(self.mag, gain=-self.mag.gain),
+            **{name: dataclasses.replace(sensor, gain=-sensor.gain)},
             magnetic=np.array([h[0], h[1], -h[2]]),
-            rotations=self.rotations @ np.diag([-1.0, -1.0, 1.0]),
+            rotations=self.rotations @ D,
             covariance=covariance,
         )
 

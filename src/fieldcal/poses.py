@@ -75,6 +75,11 @@ def as_pose_list(samples: object, name: str) -> list[Array]:
 
     Raises ``ValueError`` with a one-line message naming the problem and the fix.
     """
+    return _validated(samples, name)[0]
+
+
+def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[np.int64]]:
+    """The checked poses, their concatenation (a fresh array) and the counts Δ_i."""
     if isinstance(samples, np.ndarray) and samples.ndim == 3:
         poses = list(samples)
     elif isinstance(samples, np.ndarray) and samples.ndim == 2:
@@ -106,26 +111,41 @@ def as_pose_list(samples: object, name: str) -> list[Array]:
         if array.shape[0] == 0:
             raise ValueError(f"{name}: pose {i} has no samples; drop it or record it again")
         out.append(array)
-    bad = [i for i, a in enumerate(out) if not np.all(np.isfinite(a))]
-    if bad:
-        shown = ", ".join(map(str, bad[:5])) + (" ..." if len(bad) > 5 else "")
-        raise ValueError(
-            f"{name}: NaN or inf readings in {len(bad)} pose(s) ({shown}); "
-            "remove those samples before calibrating"
-        )
-    return out
+    stacked = np.concatenate(out, axis=0)
+    counts = np.array([len(a) for a in out], dtype=np.int64)
+    _check_finite(stacked, counts, name)
+    return out, stacked, counts
 
 
-def _sensor_stats(poses: list[Array]) -> SensorStats:
-    counts = np.array([len(p) for p in poses], dtype=np.int64)
-    stacked = np.concatenate(poses, axis=0)
+def _check_finite(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
+    """One vectorised pass; the message names the poses with non-finite readings."""
+    finite = np.isfinite(stacked)
+    if finite.all():
+        return
+    bad_rows = np.flatnonzero(~finite.all(axis=1))
+    bad = np.unique(np.searchsorted(np.cumsum(counts), bad_rows, side="right"))
+    shown = ", ".join(map(str, bad[:5])) + (" ..." if len(bad) > 5 else "")
+    raise ValueError(
+        f"{name}: NaN or inf readings in {len(bad)} pose(s) ({shown}); "
+        "remove those samples before calibrating"
+    )
+
+
+def _sensor_stats(stacked: Array, counts: NDArray[np.int64]) -> SensorStats:
+    """Eq. 5 and Eq. 7 in one pass over the concatenated samples (shifted in place)."""
+    # Shift by one reading so the scatter below is computed on numbers of the size of the
+    # signal, not of the offset: XᵀX − Σ Δ_i μ_i μ_iᵀ then loses no precision to cancellation.
+    shift = stacked[0].copy()
+    stacked -= shift
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    means = np.add.reduceat(stacked, starts, axis=0) / counts[:, None]  # Eq. 5
+    sums = np.add.reduceat(stacked, starts, axis=0)
+    shifted_means = sums / counts[:, None]
+    means = shifted_means + shift  # Eq. 5
     dof = int(counts.sum() - len(counts))
     if dof <= 0:
         return SensorStats(means, counts, None, dof)
-    centred = stacked - np.repeat(means, counts, axis=0)
-    cov = centred.T @ centred / dof  # Eq. 7
+    scatter = stacked.T @ stacked - sums.T @ shifted_means
+    cov = scatter / dof  # Eq. 7
     return SensorStats(means, counts, 0.5 * (cov + cov.T), dof)
 
 
@@ -148,15 +168,16 @@ def summarize(accel: object, mag: object = None) -> PoseStats:
     """
     if accel is None and mag is None:
         raise ValueError("no data: pass accelerometer poses, magnetometer poses, or both")
-    a = None if accel is None else as_pose_list(accel, "accel")
-    m = None if mag is None else as_pose_list(mag, "mag")
-    if a is not None and m is not None and len(a) != len(m):
+    a = None if accel is None else _validated(accel, "accel")
+    m = None if mag is None else _validated(mag, "mag")
+    if a is not None and m is not None and len(a[2]) != len(m[2]):
         raise ValueError(
-            f"accel has {len(a)} poses but mag has {len(m)}; pass the same poses, in the same "
-            "order, for both sensors"
+            f"accel has {len(a[2])} poses but mag has {len(m[2])}; pass the same poses, in the "
+            "same order, for both sensors"
         )
     return PoseStats(
-        None if a is None else _sensor_stats(a), None if m is None else _sensor_stats(m)
+        None if a is None else _sensor_stats(*a[1:]),
+        None if m is None else _sensor_stats(*m[1:]),
     )
 
 
