@@ -382,7 +382,7 @@ def _deltas(session: Any, cal: Any, n_found: int) -> dict[str, float | None]:
 @click.option("--out", "out_dir", help="Folder for session.csv, cal.json and report.html.")
 @click.option("--no-report", is_flag=True, help="Skip the HTML report.")
 def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
-    """Simulate a hand-held session, find its poses, calibrate it and compare with the truth."""
+    """Simulate a Table 1 session as a continuous log, find its poses, calibrate, compare."""
     from .continuous import simulate_continuous
     from .io import load_log
     from .summary import print_summary, print_truth_comparison
@@ -391,11 +391,12 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
     started = time.perf_counter()
     folder = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="fieldcal-demo-"))
     folder.mkdir(parents=True, exist_ok=True)
-    sim = simulate_continuous("paper", seed=seed, pose_distribution="handheld")
+    sim = simulate_continuous("paper", seed=seed)
     log_path = folder / "session.csv"
     sim.write_csv(str(log_path))
     console.print(
-        f"simulated a hand-held session: {sim.session.truth.n_poses} poses, "
+        f"simulated a session of the seed paper's Table 1 as a continuous log: "
+        f"{sim.session.truth.n_poses} poses, "
         f"{len(sim.columns['t'])} samples at {sim.rate:g} Hz -> {log_path}"
     )
     log = load_log(log_path)
