@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 import fieldcal
 from fieldcal.cli import cli
-from fieldcal.rotations import exp_so3
+from fieldcal.geometry.rotations import exp_so3
 
 
 def run(*args, ok=True):

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import fieldcal
-from fieldcal.ellipsoid_fit import (
+from fieldcal.geometry.quadrics import (
     algebraic_fit,
     li_griffiths_fit,
     quadric_from_coefficients,
@@ -23,7 +23,7 @@ from fieldcal.ellipsoid_fit import (
 )
 from fieldcal.methods import ellipsoid as method
 from fieldcal.metrics import reconstruction_error
-from fieldcal.rotations import exp_so3, random_rotations, rotation_angle_deg
+from fieldcal.geometry.rotations import exp_so3, random_rotations, rotation_angle_deg
 
 L_TRUE = np.array([[1.10, 0.0, 0.0], [0.05, 0.90, 0.0], [-0.03, 0.08, 1.05]])
 C_TRUE = np.array([0.3, -0.2, 0.5])

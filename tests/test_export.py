@@ -11,7 +11,7 @@ import pytest
 
 import fieldcal
 from fieldcal.errors import InputError
-from fieldcal.export import export
+from fieldcal.output.exports import export
 
 
 @pytest.fixture(scope="module")

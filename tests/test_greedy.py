@@ -16,7 +16,7 @@ from fieldcal.methods.gls import (
     symmetric_from_vector,
 )
 from fieldcal.metrics import reconstruction_error
-from fieldcal.rotations import quaternion_to_matrix
+from fieldcal.geometry.rotations import quaternion_to_matrix
 
 SEED = 0  # a Table 1 session the greedy method converges on in 90 iterations
 

@@ -12,7 +12,10 @@ import pytest
 from scipy import stats as sstats
 
 import fieldcal
-from fieldcal.methods import mle, mle_lm, mle_model, mle_start
+from fieldcal.methods import mle
+from fieldcal.methods.mle import lm as mle_lm
+from fieldcal.methods.mle import model as mle_model
+from fieldcal.methods.mle import start as mle_start
 from fieldcal.metrics import reconstruction_error
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))

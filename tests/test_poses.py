@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.poses import stats_from_means
+from fieldcal.stats.poses import stats_from_means
 
 
 def test_summarize_matches_a_hand_computation():

@@ -15,8 +15,8 @@ from click.testing import CliRunner
 
 import fieldcal
 from fieldcal.cli import cli
-from fieldcal.io import load_log, parse_axes
-from fieldcal.stillness import detect_still
+from fieldcal.logs.io import load_log, parse_axes
+from fieldcal.logs.stillness import detect_still
 
 
 def run(*args, code=0):

@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
-from fieldcal.rotations import (
+from fieldcal.geometry.rotations import (
     exp_so3,
     log_so3,
     project_to_so3,

@@ -4,30 +4,48 @@
 >>> session = fieldcal.simulate("paper", seed=1)
 >>> cal = fieldcal.calibrate(session.accel, session.mag)          # doctest: +SKIP
 
-Conventions are stated once in ``docs/conventions.md`` and in :mod:`fieldcal.model`.
+Conventions are stated once in :mod:`fieldcal.geometry.frames` and ``docs/conventions.md``;
+the rooms of the package are described in ``docs/architecture.md``. Importing fieldcal loads
+numpy only: SciPy, matplotlib and pyarrow load when a function first needs them.
 """
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from typing import TYPE_CHECKING, Any
 
 from . import metrics
+from ._version import __version__
 from .api import calibrate
+from .calibration import (
+    Accuracy,
+    Calibration,
+    Diagnostics,
+    ParameterCovariance,
+    RejectedPose,
+    SensorCalibration,
+    Verdict,
+)
 from .errors import InputError
-from .methods.ellipsoid import align, fit_ellipsoid
-from .model import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
-from .poses import PoseStats, SensorStats, stats_from_means, summarize
-from .simulate import Session, simulate
+from .methods import METHODS
+from .simulation.session import Session, simulate
+from .stats.poses import PoseStats, SensorStats, stats_from_means, summarize
+
+if TYPE_CHECKING:
+    from .methods.ellipsoid import align, fit_ellipsoid
 
 __all__ = [
+    "METHODS",
+    "Accuracy",
     "Calibration",
     "Diagnostics",
     "InputError",
     "ParameterCovariance",
     "PoseStats",
+    "RejectedPose",
     "SensorCalibration",
     "SensorStats",
     "Session",
+    "Verdict",
     "__version__",
     "align",
     "calibrate",
@@ -37,3 +55,14 @@ __all__ = [
     "stats_from_means",
     "summarize",
 ]
+
+#: Public names whose modules need SciPy: imported on first use, keeping ``import fieldcal`` light.
+_LAZY = {"align": "fieldcal.methods.ellipsoid", "fit_ellipsoid": "fieldcal.methods.ellipsoid"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'fieldcal' has no attribute {name!r}")

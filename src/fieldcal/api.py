@@ -1,8 +1,7 @@
-"""``fieldcal.calibrate``: validate the input, summarise the poses, dispatch to a method.
+"""``fieldcal.calibrate``: validate the input, summarise the poses, run the method through the
+shared trust path, then express the result in the user's units and handedness.
 
-A method is a function ``fit(stats, *, raw_accel, raw_mag, body_frame, **options)`` returning a
-:class:`~fieldcal.model.Calibration` with unit fields (``|g| = |h| = 1``); this module then
-applies the physical magnitudes the user asked for, so every method shares them.
+This module names no method: :mod:`fieldcal.methods` validates and dispatches.
 """
 
 from __future__ import annotations
@@ -10,21 +9,21 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
-from collections.abc import Callable
+import numbers
+from collections.abc import Callable, Mapping
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
-from .model import Calibration
-from .poses import PoseStats, SensorStats, summarize
+from .calibration import Calibration
+from .methods import get as get_method
+from .stats.noise import noise_covariance, per_sensor, pose_noise_value
+from .stats.poses import PoseStats, summarize
 
-__all__ = ["METHODS", "MIN_POSES", "calibrate"]
+__all__ = ["calibrate"]
 
-#: method name -> module in ``fieldcal.methods`` that defines ``fit``.
-METHODS: dict[str, str] = {"mle": "mle", "greedy": "greedy", "ellipsoid": "ellipsoid"}
-
-#: The joint problem has 6N observations and 3N + 22 unknowns: it needs 3N − 22 > 0.
-MIN_POSES = 8
+PoseNoiseSpec = str | float | Mapping[str, "str | float"]
 
 
 @functools.cache
@@ -36,53 +35,40 @@ def _blas() -> Any:
     return ThreadpoolController()
 
 
-def _method(name: str) -> Callable[..., Calibration]:
-    module = importlib.import_module(f".methods.{METHODS[name]}", __package__)
-    return module.fit
+def _trust() -> ModuleType:
+    """The shared trust path, imported on first use: it needs SciPy, which ``import fieldcal``
+    does not load."""
+    return importlib.import_module(".trust.fitting", __package__)
 
 
-def _noise_cov(value: Any, name: str) -> np.ndarray:
-    """A user's noise: a standard deviation (scalar or per axis) or a 3x3 covariance."""
-    array = np.asarray(value, dtype=float)
-    if array.ndim <= 1 and not np.all(array > 0):
-        raise ValueError(f"noise for {name} must be finite and positive, got {value!r}")
-    if array.ndim == 0:
-        cov = np.eye(3) * float(array) ** 2
-    elif array.shape == (3,):
-        cov = np.diag(array**2)
-    elif array.shape == (3, 3):
-        cov = 0.5 * (array + array.T)
-    else:
-        raise ValueError(
-            f"noise for {name} must be a standard deviation (scalar or 3 values) or a 3x3 "
-            f"covariance, got shape {array.shape}"
-        )
-    if not np.all(np.isfinite(cov)) or np.any(np.linalg.eigvalsh(cov) <= 0):
-        raise ValueError(f"noise for {name} must be finite and positive")
-    return cov
+def _magnitude(value: object, name: str) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    if not (np.isfinite(float(value)) and float(value) > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return float(value)
 
 
-def _with_user_noise(stats: PoseStats, noise: Any) -> tuple[PoseStats, dict[str, str]]:
+def _with_user_noise(stats: PoseStats, noise: object) -> tuple[PoseStats, dict[str, str]]:
     """Replace Eq. 7's covariance by the user's where given; report each sensor's source."""
+    given = per_sensor(noise, "noise") if noise is not None else {}
     sources: dict[str, str] = {}
-    per_sensor = noise if isinstance(noise, dict) else {"accel": noise, "mag": noise}
-    unknown = set(per_sensor) - {"accel", "mag"}
-    if unknown:
-        raise ValueError(f"noise keys must be 'accel' and/or 'mag', got {sorted(unknown)}")
-    updated: dict[str, SensorStats | None] = {}
-    for name in ("accel", "mag"):
-        sensor: SensorStats | None = getattr(stats, name)
-        if sensor is None:
-            updated[name] = None
-            continue
-        value = per_sensor.get(name)
+    for name in stats.sensors:
+        value = given.get(name)
         if value is not None:
-            updated[name] = dataclasses.replace(sensor, cov=_noise_cov(value, name))
+            stats = stats.replace(
+                **{name: dataclasses.replace(stats.sensor(name), cov=noise_covariance(value, name))}
+            )
             sources[name] = "user"
         else:
-            updated[name] = sensor
-            sources[name] = "scatter" if sensor.cov is not None else "residuals"
-    return PoseStats(updated["accel"], updated["mag"]), sources
+            sources[name] = "scatter" if stats.sensor(name).cov is not None else "residuals"
+    return stats, sources
+
+
+def _continuous(accel: object, mag: object) -> bool:
+    return any(isinstance(x, np.ndarray) and x.ndim == 2 for x in (accel, mag) if x is not None)
 
 
 def calibrate(
@@ -93,8 +79,13 @@ def calibrate(
     gravity: float | None = None,
     field_strength: float | None = None,
     noise: Any = None,
+    pose_noise: PoseNoiseSpec = "auto",
+    robust: bool = True,
+    false_alarm: float = 0.01,
+    trim: bool | None = None,
     body_frame: str = "accel",
     mag_mirrored: bool = False,
+    on_progress: Callable[[str], None] | None = None,
     **options: Any,
 ) -> Calibration:
     """Calibrate an accelerometer and a magnetometer together from static poses.
@@ -104,20 +95,31 @@ def calibrate(
     accel, mag
         Each a sequence of N arrays of shape (n_i, 3): the raw samples taken while the device
         rested in pose i (same N and order for both sensors). Either may be ``None`` to
-        calibrate one sensor alone. ``method="ellipsoid"`` also takes single (n, 3) arrays of
-        continuous samples.
-    method : {"mle", "greedy", "ellipsoid"}
-        ``"mle"`` (default): joint maximum likelihood, globally initialised, with uncertainty.
-        ``"greedy"``: the seed paper's algorithm (Miranda & Ferreira, Sec. 5), as published.
-        ``"ellipsoid"``: per-sensor ellipsoid fits and dot-product alignment (CK-Explorer).
+        calibrate one sensor alone. Methods registered as taking continuous input
+        (``"ellipsoid"``) also take single (n, 3) arrays of samples.
+    method : str
+        A name in :data:`fieldcal.METHODS`: ``"mle"`` (default, joint maximum likelihood),
+        ``"greedy"`` (the seed paper's algorithm), ``"ellipsoid"`` (CK-Explorer).
     gravity, field_strength : float, optional
         Magnitudes of the reference fields; the gains come out in raw units per unit of these.
         Default 1 (unit fields).
     noise : float, array, or dict, optional
         Noise of one raw sample, used instead of the within-pose scatter (Eq. 7): a standard
         deviation (scalar or per axis), a 3x3 covariance, or ``{"accel": ..., "mag": ...}``.
-        When a sensor has one sample per pose and no noise is given, it is estimated from the
-        fit's residuals.
+    pose_noise : "auto", "none", float, or dict
+        The pose-level noise ``q`` (raw units, per axis) of each pose mean, beyond
+        ``noise / sqrt(samples)``: estimated with the calibration (``"auto"``, default), zero
+        (``"none"``, the seed paper's model) or given; per sensor as
+        ``{"accel": ..., "mag": ...}``. With one sample per pose it is the noise from the
+        residuals.
+    robust : bool
+        Test every pose and drop disturbed ones, refitting (default True); each dropped pose
+        is in ``cal.rejected``.
+    false_alarm : float
+        Family-wise false-alarm rate of the pose tests per calibration (default 0.01).
+    trim : bool, optional
+        Cut samples that are not still (a bump, a tap) inside each pose before Eq. 5/7.
+        Default: the same as ``robust``.
     body_frame : {"accel", "mag"}
         Which sensor's gain is made symmetric, fixing the common body frame (Sec. 4.3).
     mag_mirrored : bool
@@ -125,60 +127,88 @@ def calibrate(
         accelerometer's (a left-handed triad, e.g. the LSM9DS1's). Static poses cannot tell
         this from a field in the opposite magnetic hemisphere (the dip's sign), so it is a
         prior: by default the magnetometer's gain comes out with a positive determinant.
-        Remapping the axes to match the accelerometer beforehand is equivalent.
+    on_progress : callable, optional
+        Called with one line of text at each step of the robust fit (for progress displays).
     **options
-        Passed to the method (see its documentation), e.g. ``gamma`` for ``"greedy"``.
+        The method's own options (keyword-only parameters of its ``fit``), e.g. ``gamma`` for
+        ``"greedy"``; an unknown one is a ``ValueError`` listing the known ones.
 
     Returns
     -------
     Calibration
+        With ``verdict``, ``rejected``, ``accuracy`` and each sensor's ``pose_noise_std``.
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    spec = get_method(method)
     if body_frame not in ("accel", "mag"):
         raise ValueError(f"body_frame must be 'accel' or 'mag', got {body_frame!r}")
-    continuous = method == "ellipsoid" and any(
-        isinstance(x, np.ndarray) and x.ndim == 2 for x in (accel, mag) if x is not None
-    )
-    if continuous:
-        if noise is not None:
-            raise ValueError(
-                "noise= needs per-pose input; with continuous samples the ellipsoid method "
-                "estimates the noise from its fit residuals (pass per-pose arrays instead)"
-            )
-        stats, sources = None, {}
-    else:
-        stats = summarize(accel, mag)
-        if method != "ellipsoid" and stats.n_poses < MIN_POSES:
-            raise ValueError(
-                f"{stats.n_poses} poses given; the {method} method needs at least {MIN_POSES} "
-                f"(6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
-            )
-        stats, sources = (
-            _with_user_noise(stats, noise)
-            if noise is not None
-            else (
-                stats,
-                {
-                    name: ("scatter" if getattr(stats, name).cov is not None else "residuals")
-                    for name in ("accel", "mag")
-                    if getattr(stats, name) is not None
-                },
-            )
-        )
-    fit = _method(method)
-    kwargs = {"raw_accel": accel, "raw_mag": mag, "body_frame": body_frame, **options}
-    # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds contention,
-    # and two processes calibrating at once made a 5 ms fit take 0.7 s with default threading.
-    with _blas().limit(limits=1):
-        if method in ("mle", "greedy") and "residuals" in sources.values():
-            # one sample per pose: no Eq. 7, the noise comes from the fit's residuals
-            from .noise import fit_with_residual_noise
+    for flag, value in (("mag_mirrored", mag_mirrored), ("robust", robust)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{flag} must be True or False, got {value!r}")
+    if trim is None:
+        trim = bool(robust)
+    elif not isinstance(trim, (bool, np.bool_)):
+        raise ValueError(f"trim must be True or False, got {trim!r}")
+    if isinstance(false_alarm, bool) or not isinstance(false_alarm, numbers.Real):
+        raise ValueError(f"false_alarm must be a number in (0, 1), got {false_alarm!r}")
+    if not 0 < float(false_alarm) < 1:
+        raise ValueError(f"false_alarm must be in (0, 1), got {false_alarm!r}")
+    g = _magnitude(gravity, "gravity")
+    h = _magnitude(field_strength, "field_strength")
+    spec.check_options(options)
+    fixed = {s: pose_noise_value(v, s) for s, v in per_sensor(pose_noise, "pose_noise").items()}
+    provenance = {
+        "body_frame": body_frame,
+        "mag_mirrored": bool(mag_mirrored),
+        "robust": bool(robust),
+        "false_alarm": float(false_alarm),
+        "trim": bool(trim),
+    }
 
-            cal = fit_with_residual_noise(fit, stats, sources, warm_start=method == "mle", **kwargs)
+    with _blas().limit(limits=1):
+        # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds
+        # contention, and two processes calibrating at once made a 5 ms fit take 0.7 s.
+        if _continuous(accel, mag):
+            if not spec.continuous:
+                raise ValueError(
+                    f"method {method!r} needs per-pose input: pass a list with one (n_i, 3) "
+                    "array per static pose (or use method='ellipsoid' for continuous samples)"
+                )
+            if noise is not None:
+                raise ValueError(
+                    "noise= needs per-pose input; with continuous samples the ellipsoid method "
+                    "estimates the noise from its fit residuals (pass per-pose arrays instead)"
+                )
+            cal = spec.load()(None, raw_accel=accel, raw_mag=mag, body_frame=body_frame, **options)
         else:
-            cal = fit(stats, noise_sources=sources, **kwargs)
-    cal = cal.with_mag_handedness(mag_mirrored)
-    if gravity is not None or field_strength is not None:
-        cal = cal.with_field_magnitudes(gravity, field_strength)
+            stats = summarize(accel, mag, trim=bool(trim))
+            need = spec.min_poses_for(len(stats.sensors))
+            if stats.n_poses < need:
+                raise ValueError(
+                    f"{stats.n_poses} poses given; the {method} method needs at least {need}"
+                    + (
+                        " (6N readings must outnumber the 3N rotation angles plus 22 sensor "
+                        "parameters)"
+                        if len(stats.sensors) == 2
+                        else " with one sensor"
+                    )
+                )
+            stats, sources = _with_user_noise(stats, noise)
+            cal = _trust().fit_trusted(
+                spec,
+                stats,
+                raw_accel=accel,
+                raw_mag=mag,
+                body_frame=body_frame,
+                options=options,
+                sources=sources,
+                pose_noise={s: fixed[s] for s in stats.sensors},
+                robust=bool(robust),
+                alpha=float(false_alarm),
+                mag_mirrored=bool(mag_mirrored),
+                on_progress=on_progress,
+            )
+    cal = dataclasses.replace(cal, options={**cal.options, **provenance})
+    cal = cal.with_mag_handedness(bool(mag_mirrored))
+    if g is not None or h is not None:
+        cal = cal.with_field_magnitudes(g, h)
     return cal

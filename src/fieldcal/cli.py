@@ -60,7 +60,7 @@ def _console(quiet: bool = False) -> Console:
 
 
 def _read_cal(path: str) -> Any:
-    from .model import Calibration
+    from .calibration import Calibration
 
     file = Path(path)
     if not file.is_file():
@@ -116,7 +116,7 @@ def _load(
     pose_col: Any,
     drop_nan: bool,
 ) -> Any:
-    from .io import load_log
+    from .logs.io import load_log
 
     return load_log(
         log,
@@ -131,7 +131,7 @@ def _load(
 
 def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str, Any], list[str]]:
     """Poses, calibration and the JSON document for a loaded log."""
-    from .io import parse_axes
+    from .logs.io import parse_axes
     from .pipeline import calibrate_log, document, parse_noise, poses_from_log
 
     notes = [
@@ -228,7 +228,7 @@ def calibrate(log: str, output: str, as_json: bool, quiet: bool, **opts: Any) ->
     if as_json:
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif not quiet:
-        from .summary import print_summary
+        from .output.summary import print_summary
 
         console = _console()
         print_summary(console, cal, doc, notes)
@@ -247,7 +247,7 @@ def apply(
     cal_json: str, log: str, output: str, accel_cols: Any, mag_cols: Any, quiet: bool
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG; large CSV files are streamed."""
-    from .io import apply_to_file
+    from .logs.io import apply_to_file
 
     cal = _read_cal(cal_json)
     used = apply_to_file(cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols)
@@ -270,7 +270,7 @@ def apply(
 @click.option("-o", "--output", help="Write to this file instead of stdout.")
 def export(cal_json: str, fmt: str, output: str | None) -> None:
     """Write the calibration for firmware or another tool, its convention stated in the text."""
-    from .export import export as render
+    from .output.exports import export as render
 
     text = render(_read_cal(cal_json), fmt)
     if output:
@@ -302,8 +302,8 @@ def simulate(
     rate: float,
 ) -> None:
     """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
-    from .continuous import simulate_continuous
-    from .simulate import simulate as draw
+    from .simulation.continuous import simulate_continuous
+    from .simulation.session import simulate as draw
 
     extra: dict[str, Any] = {"n_poses": poses} if poses else {}
     if handheld:
@@ -344,7 +344,7 @@ def simulate(
 @_log_options
 def report(cal_json: str, log: str, output: str, png_dir: str | None, **cols: Any) -> None:
     """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
-    from .report import write_report
+    from .output.report import write_report
 
     cal = _read_cal(cal_json)
     data = _load(
@@ -383,9 +383,9 @@ def _deltas(session: Any, cal: Any, n_found: int) -> dict[str, float | None]:
 @click.option("--no-report", is_flag=True, help="Skip the HTML report.")
 def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
     """Simulate a Table 1 session as a continuous log, find its poses, calibrate, compare."""
-    from .continuous import simulate_continuous
-    from .io import load_log
-    from .summary import print_summary, print_truth_comparison
+    from .simulation.continuous import simulate_continuous
+    from .logs.io import load_log
+    from .output.summary import print_summary, print_truth_comparison
 
     console = _console()
     started = time.perf_counter()
@@ -412,7 +412,7 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
                 "matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')"
             )
         else:
-            from .report import write_report
+            from .output.report import write_report
 
             write_report(cal, load_log(log_path), folder / "report.html")
             console.print(f"report: {folder / 'report.html'}")

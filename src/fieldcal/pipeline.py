@@ -10,11 +10,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .api import MIN_POSES, calibrate
+from .api import calibrate
+from .methods import get as get_method
 from .errors import InputError
-from .io import Log
-from .model import Calibration, ParameterCovariance
-from .stillness import StillResult, detect_still
+from .logs.io import Log
+from .calibration import Calibration
+from .logs.stillness import StillResult, detect_still
 
 __all__ = ["PoseSet", "calibrate_log", "document", "fold_axes", "parse_noise", "poses_from_log"]
 
@@ -213,14 +214,19 @@ def orientation_labels(directions: list[Array], tol_deg: float = 3.0) -> NDArray
 
 def _check_poses(poses: PoseSet, method: str) -> None:
     n = poses.n
-    if method != "ellipsoid" and n < MIN_POSES:
-        raise InputError(
-            f"{n} pose(s) found; the {method} method needs at least {MIN_POSES} (the 6N readings "
-            f"must outnumber the 3N pose angles plus 22 sensor parameters): hold the device still "
-            f"in {MIN_POSES - n} or more further orientations"
-        )
     sensors = [(name, getattr(poses, name)) for name in ("accel", "mag")]
     sensors = [(name, samples) for name, samples in sensors if samples is not None]
+    need = get_method(method).min_poses_for(len(sensors))
+    if n < need:
+        raise InputError(
+            f"{n} pose(s) found; the {method} method needs at least {need}"
+            + (
+                " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
+                if len(sensors) == 2
+                else ""
+            )
+            + f": hold the device still in {need - n} or more further orientations"
+        )
     for name, samples in sensors:
         means = np.array([p.mean(axis=0) for p in samples])
         centred = means - means.mean(axis=0)
@@ -234,7 +240,7 @@ def _check_poses(poses: PoseSet, method: str) -> None:
                 "tilted up and down"
             )
     # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
-    need = MIN_POSES if len(sensors) == 2 else 9
+    need = max(need, 8 if len(sensors) == 2 else 9)
     distinct = len(set(poses_orientations(poses)))
     if distinct < need:
         raise InputError(
@@ -260,8 +266,6 @@ def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
         gain=Pt @ mag.gain,
         bias=Pt @ mag.bias,
         noise_cov=Pt @ mag.noise_cov @ P,
-        gain_std=None if mag.gain_std is None else A @ mag.gain_std,
-        bias_std=None if mag.bias_std is None else A @ mag.bias_std,
         noise_cov_std=None if mag.noise_cov_std is None else A @ mag.noise_cov_std @ A.T,
     )
     covariance = cal.covariance
@@ -275,9 +279,15 @@ def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
             if all(t in names for t in triple):
                 idx = [names.index(t) for t in triple]
                 T[np.ix_(idx, idx)] = Pt
-        covariance = ParameterCovariance(covariance.names, T @ covariance.matrix @ T.T)
+        covariance = covariance.transformed(T)
     options = {**cal.options, "mag_axes": spec}
-    return dataclasses.replace(cal, mag=new, covariance=covariance, options=options)
+    poses = tuple(
+        {**row, "mag_residual": list(Pt @ np.asarray(row["mag_residual"]))}
+        if "mag_residual" in row
+        else row
+        for row in cal.poses
+    )
+    return dataclasses.replace(cal, mag=new, covariance=covariance, options=options, poses=poses)
 
 
 def calibrate_log(
@@ -291,11 +301,14 @@ def calibrate_log(
     mag_axes: str | None = None,
     P: Array | None = None,
     mag_mirrored: bool = False,
+    **options: Any,
 ) -> Calibration:
     """Calibrate from the poses and attach each pose's log position to ``cal.poses``.
 
     ``P`` is the parsed ``mag_axes`` map, already applied to ``log.mag``; it is folded back so
-    the calibration applies to the raw columns.
+    the calibration applies to the raw columns. Further ``options`` go to
+    :func:`fieldcal.calibrate` (``pose_noise``, ``robust``, the method's options). Every pose
+    found is listed; a pose the robust fit dropped has ``rejected`` set to the reason.
     """
     _check_poses(poses, method)
     try:
@@ -307,6 +320,7 @@ def calibrate_log(
             field_strength=field_strength,
             noise=noise,
             mag_mirrored=mag_mirrored,
+            **options,
         )
     except np.linalg.LinAlgError as exc:
         raise InputError(
@@ -315,11 +329,14 @@ def calibrate_log(
         ) from None
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
+    fitted = {int(row["index"]): row for row in cal.poses}
+    dropped = {r.index: r for r in cal.rejected}
     rows = []
     for i, entry in enumerate(poses.entries):
-        fit = dict(cal.poses[i]) if i < len(cal.poses) else {"index": i}
-        fit.update(entry)
-        rows.append(fit)
+        row = {**fitted.get(i, {"index": i}), **entry}
+        if i in dropped:
+            row["rejected"] = f"{dropped[i].sensor}: {dropped[i].reason}"
+        rows.append(row)
     options = {**cal.options, "log": log.path, "columns": log.used}
     return dataclasses.replace(cal, poses=tuple(rows), options=options)
 

@@ -37,17 +37,18 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..diagnostics import certify, pose_table
-from ..ellipsoid_fit import (
+from ..geometry.quadrics import (
     Quadric,
     algebraic_fit,
     ellipsoid_radii,
     li_griffiths_fit,
     reverse_triangular_factor,
 )
-from ..model import Calibration, Diagnostics, SensorCalibration, canonical_gauge
-from ..poses import PoseStats
-from ..rotations import exp_so3, project_to_so3, quaternion_to_matrix, rotation_angle_deg, wahba
+from ..calibration import Calibration, SensorCalibration
+from ..geometry.frames import GRAVITY, magnetic_reference
+from ..geometry.gauge import canonical_gauge
+from ..stats.poses import PoseStats
+from ..geometry.rotations import exp_so3, project_to_so3, quaternion_to_matrix, rotation_angle_deg, wahba
 
 __all__ = [
     "MIN_POSES",
@@ -72,7 +73,6 @@ MIN_SAMPLES = 10
 #: determined by the noise alone.
 MIN_POSES = 9
 
-_OPTIONS = ("faithful", "inclination_deg", "fit_on")
 
 
 class NotAnEllipsoidWarning(RuntimeWarning):
@@ -564,9 +564,7 @@ def _minimal_rotations(body: Array, reference: Array) -> Array:
     return exp_so3(unit * np.arctan2(sin, cos)[:, None])
 
 
-def _noise(
-    stats_sensor: Any, source: str | None, x: Array, fit_: EllipsoidFit
-) -> tuple[Array, str]:
+def _noise(stats_sensor: Any, x: Array, fit_: EllipsoidFit) -> tuple[Array, str]:
     """Eq. 7 when the poses give it; otherwise isotropic from the radial residuals.
 
     For isotropic noise the radial component of a sample's error has the full variance σ²;
@@ -574,7 +572,7 @@ def _noise(
     9 degrees of freedom.
     """
     if stats_sensor is not None and stats_sensor.cov is not None:
-        return np.asarray(stats_sensor.cov, float), source or "scatter"
+        return np.asarray(stats_sensor.cov, float), "scatter"
     norms = np.linalg.norm(fit_.correct(x), axis=1)
     radius = float(np.exp(np.mean(np.log(fit_.radii))))
     var = float(np.sum((norms - 1.0) ** 2) * radius**2 / max(len(x) - 9, 1))
@@ -582,17 +580,11 @@ def _noise(
 
 
 def _validate_options(
-    options: dict[str, Any],
     faithful: Any,
     inclination_deg: Any,
     fit_on: str,
     continuous: bool,
 ) -> None:
-    unknown = sorted(set(options))
-    if unknown:
-        raise ValueError(
-            f"unknown option(s) {unknown} for method='ellipsoid'; known: {', '.join(_OPTIONS)}"
-        )
     if not isinstance(faithful, (bool, np.bool_)):
         raise ValueError(f"faithful must be True or False, got {faithful!r}")
     if inclination_deg is not None:
@@ -664,11 +656,9 @@ def fit(
     raw_accel: Any,
     raw_mag: Any,
     body_frame: str = "accel",
-    noise_sources: dict[str, str] | None = None,
     faithful: bool = False,
     inclination_deg: float | None = None,
     fit_on: str = "samples",
-    **options: Any,
 ) -> Calibration:
     """``fieldcal.calibrate(..., method="ellipsoid")``: Sec. 2 per sensor, Sec. 3 jointly.
 
@@ -682,7 +672,7 @@ def fit(
 
     Options: ``faithful`` (bool), ``inclination_deg`` (float, the expected dip), ``fit_on``.
     """
-    _validate_options(options, faithful, inclination_deg, fit_on, stats is None)
+    _validate_options(faithful, inclination_deg, fit_on, stats is None)
     faithful = bool(faithful)
     inputs = (
         _continuous_inputs(raw_accel, raw_mag)
@@ -716,7 +706,7 @@ def fit(
         "input": "continuous" if stats is None else "poses",
     }
     return _calibration(
-        stats, fits, alignment, inputs.samples, noise_sources or {}, body_frame, options_used
+        stats, fits, alignment, inputs.samples, body_frame, options_used
     )
 
 
@@ -773,11 +763,11 @@ def _fields(
 ) -> dict[str, Array | None]:
     """``g = (0, 0, −1)``; ``h = (cos dip, 0, sin dip)`` with ``dip = θ − 90°`` (so that
     ``g·h = −sin dip = cos θ = β``, Eq. 15); ``(1, 0, 0)`` for a magnetometer alone."""
-    gravity = None if fits["accel"] is None else np.array([0.0, 0.0, -1.0])
+    gravity = None if fits["accel"] is None else GRAVITY
     magnetic = None
     if fits["mag"] is not None:
         dip = 0.0 if alignment is None else np.radians(alignment.dip_deg)
-        magnetic = np.array([np.cos(dip), 0.0, np.sin(dip)])
+        magnetic = magnetic_reference(dip)
     return {"accel": gravity, "mag": magnetic}
 
 
@@ -786,7 +776,6 @@ def _calibration(
     fits: dict[str, EllipsoidFit | None],
     alignment: Alignment | None,
     samples: dict[str, Array | None],
-    noise_sources: dict[str, str],
     body_frame: str,
     options: dict[str, Any],
 ) -> Calibration:
@@ -799,7 +788,7 @@ def _calibration(
         if sensor_fit is not None:
             sensor_stats = None if stats is None else getattr(stats, name)
             noise[name], sources[name] = _noise(
-                sensor_stats, noise_sources.get(name), samples[name], sensor_fit
+                sensor_stats, samples[name], sensor_fit
             )
     rotations = (
         np.zeros((0, 3, 3)) if stats is None else _pose_rotations(stats, fits, maps, noise, fields)
@@ -827,25 +816,9 @@ def _calibration(
         iterations=0 if alignment is None else alignment.iterations,
         converged=True if alignment is None else alignment.converged,
         options=options,
+        message=_status(fits, alignment),
     )
-    return _certified(cal, stats, _status(fits, alignment))
-
-
-def _certified(cal: Calibration, stats: PoseStats | None, status: str) -> Calibration:
-    """Eq. 8's cost and χ² certificate (dof ``3N − 22`` jointly, ``N − 9`` for one sensor:
-    3N readings minus 2N directions and 9 sensor parameters); NaN without poses."""
-    if stats is None:
-        diagnostics = Diagnostics(float("nan"), 0, float("nan"), np.zeros(0), status)
-        return dataclasses.replace(cal, diagnostics=diagnostics)
-    n = stats.n_poses
-    dof = 3 * n - 22 if cal.accel is not None and cal.mag is not None else n - 9
-    diagnostics = certify(cal, stats, dof=dof, status=status)
-    return dataclasses.replace(
-        cal,
-        cost=diagnostics.statistic,
-        diagnostics=diagnostics,
-        poses=pose_table(diagnostics, stats),
-    )
+    return cal
 
 
 def _status(fits: dict[str, EllipsoidFit | None], alignment: Alignment | None) -> str:

@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..diagnostics import certify, pose_table
-from ..model import Calibration, SensorCalibration, canonical_gauge
-from ..poses import PoseStats
-from ..rotations import quaternion_to_matrix
+from ..calibration import Calibration, SensorCalibration
+from ..geometry.gauge import canonical_gauge
+from ..stats.poses import PoseStats
+from ..geometry.rotations import quaternion_to_matrix
 from .gls import (
     accel_bias_field_design,
     accel_gain_design,
@@ -49,12 +49,6 @@ Array = NDArray[np.float64]
 #: Sec. 5, step 5: gains are re-estimated only when h_z moved by less than this.
 GAIN_TRIGGER = 1e-3
 
-DEFAULTS: dict[str, Any] = {
-    "gamma": 1e-4,
-    "max_iterations": 2000,
-    "rotation_tol": 1e-9,
-    "rotation_max_iterations": 200,
-}
 
 _X, _Z = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
 
@@ -369,11 +363,11 @@ def gain_step(state: GreedyState, data: Data) -> GreedyState:
 def run_greedy(
     stats: PoseStats,
     gamma: float = 1e-4,
-    max_iterations: int = DEFAULTS["max_iterations"],
+    max_iterations: int = 2000,
     callback: Callable[[int, float, GreedyState, float], None] | None = None,
     *,
-    rotation_tol: float = DEFAULTS["rotation_tol"],
-    rotation_max_iterations: int = DEFAULTS["rotation_max_iterations"],
+    rotation_tol: float = 1e-9,
+    rotation_max_iterations: int = 200,
 ) -> GreedyResult:
     """The algorithm of Sec. 5 in the paper's gauge, for any number of poses.
 
@@ -442,100 +436,99 @@ def to_fieldcal_gauge(state: GreedyState, body_frame: str = "accel") -> tuple[Ar
     return (*out, flipped)
 
 
-def _check(stats: PoseStats, noise_sources: dict, options: dict[str, Any]) -> dict[str, Any]:
-    unknown = set(options) - set(DEFAULTS)
-    if unknown:
-        raise ValueError(
-            f"unknown option(s) for method='greedy': {sorted(unknown)}; known: {sorted(DEFAULTS)}"
-        )
+def _check(
+    stats: PoseStats, gamma: float, max_iterations: int, rotation_tol: float, rotation_max: int
+) -> None:
     if stats is None or stats.accel is None or stats.mag is None:
         raise ValueError(
             "method='greedy' needs both accelerometer and magnetometer poses; "
             "use method='mle' to calibrate one sensor"
         )
     for name in ("accel", "mag"):
-        if getattr(stats, name).cov is None and noise_sources.get(name) != "user":
+        if stats.sensor(name).cov is None:
             raise ValueError(
                 f"{name}: one sample per pose gives no within-pose scatter (Eq. 7); record "
                 "several samples per pose or pass noise=... (the sample's standard deviation)"
             )
-    used = {**DEFAULTS, **options}
-    if not used["gamma"] > 0:
-        raise ValueError(f"gamma must be positive, got {used['gamma']!r}")
-    if int(used["max_iterations"]) < 1:
-        raise ValueError("max_iterations must be at least 1")
-    return {
-        "gamma": float(used["gamma"]),
-        "max_iterations": int(used["max_iterations"]),
-        "rotation_tol": float(used["rotation_tol"]),
-        "rotation_max_iterations": int(used["rotation_max_iterations"]),
-    }
+    for label, value in (("gamma", gamma), ("rotation_tol", rotation_tol)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+            raise ValueError(f"{label} must be a positive number, got {value!r}")
+        if not np.isfinite(value):
+            raise ValueError(f"{label} must be finite, got {value!r}")
+    for label, count in (("max_iterations", max_iterations), ("rotation_max_iterations", rotation_max)):
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+            raise ValueError(f"{label} must be a whole number of at least 1, got {count!r}")
 
 
 def fit(
     stats: PoseStats,
     *,
-    raw_accel: Any = None,
-    raw_mag: Any = None,
+    raw_accel: object = None,
+    raw_mag: object = None,
     body_frame: str = "accel",
-    noise_sources: dict | None = None,
-    **options: Any,
+    gamma: float = 1e-4,
+    max_iterations: int = 2000,
+    rotation_tol: float = 1e-9,
+    rotation_max_iterations: int = 200,
 ) -> Calibration:
     """Calibrate both sensors with the greedy algorithm of Sec. 5.
 
-    Options: ``gamma`` (stop when ``J[k−1] − J[k] <= γ``, default 1e-4 as in Table 1),
-    ``max_iterations`` (cap on Sec. 5 iterations), ``rotation_tol`` and
-    ``rotation_max_iterations`` (the gradient descent of Sec. 4.1). The result is expressed in
-    fieldcal's gauge; ``cost`` is Eq. 8 at the end. No uncertainty is given.
+    Parameters
+    ----------
+    stats : PoseStats
+        Pose means, counts and Eq. 7's covariances of both sensors.
+    raw_accel, raw_mag
+        The raw samples (unused).
+    body_frame : {"accel", "mag"}
+        Which sensor's gain is symmetric in the result.
+    gamma : float
+        Stop when ``J[k−1] − J[k] <= γ`` (Table 1: 1e-4).
+    max_iterations : int
+        Cap on Sec. 5 iterations; reaching it is reported (``converged=False``).
+    rotation_tol, rotation_max_iterations : float, int
+        The gradient descent of Sec. 4.1 per pose.
+
+    Returns
+    -------
+    Calibration
+        In fieldcal's gauge. ``options`` records the iteration cap, the time taken and the
+        counts of gain updates, sign fixes and cost increases.
     """
-    noise_sources = dict(noise_sources or {})
-    used = _check(stats, noise_sources, options)
+    _check(stats, gamma, max_iterations, rotation_tol, rotation_max_iterations)
+    started = time.perf_counter()
     result = run_greedy(
         stats,
-        used["gamma"],
-        used["max_iterations"],
-        rotation_tol=used["rotation_tol"],
-        rotation_max_iterations=used["rotation_max_iterations"],
+        float(gamma),
+        int(max_iterations),
+        rotation_tol=float(rotation_tol),
+        rotation_max_iterations=int(rotation_max_iterations),
     )
     R, Ka, Km, g, h, flipped = to_fieldcal_gauge(result.state, body_frame)
     if not result.converged:
         warnings.warn(
-            f"greedy: stopped at the cap of {used['max_iterations']} iterations before "
+            f"greedy: stopped at the cap of {max_iterations} iterations before "
             f"J[k-1] - J[k] <= gamma; raise max_iterations or gamma, or use method='mle'",
             stacklevel=3,
         )
-    cal = Calibration(
-        accel=SensorCalibration(
-            Ka,
-            result.state.accel_bias,
-            stats.accel.cov,
-            noise_source=noise_sources.get("accel", "scatter"),
-        ),
-        mag=SensorCalibration(
-            Km,
-            result.state.mag_bias,
-            stats.mag.cov,
-            noise_source=noise_sources.get("mag", "scatter"),
-        ),
+    return Calibration(
+        accel=SensorCalibration(Ka, result.state.accel_bias, stats.sensor("accel").cov),
+        mag=SensorCalibration(Km, result.state.mag_bias, stats.sensor("mag").cov),
         gravity=g,
         magnetic=h,
         rotations=R,
         method="greedy",
         iterations=result.iterations,
         converged=result.converged,
+        message="converged" if result.converged else "iteration cap reached",
         options={
-            **used,
+            "gamma": float(gamma),
+            "max_iterations": int(max_iterations),
+            "rotation_tol": float(rotation_tol),
+            "rotation_max_iterations": int(rotation_max_iterations),
+            "seconds": round(time.perf_counter() - started, 6),
             "gain_updates": result.gain_updates,
             "sign_fixes": result.sign_fixes,
             "cost_increases": result.cost_increases,
             "accel_gain_flipped": flipped,
         },
-    )
-    status = "converged" if result.converged else "iteration cap reached"
-    diagnostics = certify(cal, stats, dof=3 * stats.n_poses - 22, status=status)
-    return dataclasses.replace(
-        cal,
-        cost=diagnostics.statistic,
-        diagnostics=diagnostics,
-        poses=pose_table(diagnostics, stats),
     )

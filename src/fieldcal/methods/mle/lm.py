@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .mle_model import Problem, State, apply_step, jacobians, residuals, rotation_basis
+from .model import Problem, State, apply_step, jacobians, residuals, rotation_basis
 
 Array = NDArray[np.float64]
 

@@ -1,5 +1,6 @@
 """The sensor model, its gauge, and the Calibration result (JSON, units, inverse model)."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -8,15 +9,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import fieldcal
-from fieldcal.model import (
-    Calibration,
-    Diagnostics,
-    ParameterCovariance,
-    SensorCalibration,
-    canonical_gauge,
-    misalignment_angle_deg,
-)
-from fieldcal.rotations import exp_so3, random_rotations
+from fieldcal.calibration import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
+from fieldcal.geometry.frames import misalignment_angle_deg
+from fieldcal.geometry.gauge import canonical_gauge
+from fieldcal.geometry.rotations import exp_so3, random_rotations
 
 seeds = st.integers(0, 2**32 - 1)
 
@@ -40,21 +36,18 @@ def _full_calibration(seed=0) -> Calibration:
             truth.accel.gain,
             truth.accel.bias,
             truth.accel.noise_cov,
-            gain_std=np.full((3, 3), 1e-3),
-            bias_std=np.full(3, 2e-3),
             noise_cov_std=np.full((3, 3), 1e-6),
+            pose_noise_std=1e-3,
+            pose_noise_std_se=2e-4,
         ),
         mag=truth.mag,
         gravity=truth.gravity,
         magnetic=truth.magnetic,
         rotations=truth.rotations,
         method="mle",
-        cost=40.123456789,
         iterations=5,
         converged=True,
         options={"gamma": 1e-4, "nested": {"a": [1, 2]}},
-        dip_std_deg=0.01,
-        misalignment_std_deg=0.02,
         covariance=ParameterCovariance(
             names, [[1e-6, 1e-7, 2e-7], [1e-7, 4e-6, 3e-7], [2e-7, 3e-7, 1e-4]]
         ),
@@ -129,7 +122,7 @@ def test_json_round_trip_is_lossless():
     assert back == cal
     assert back.to_json() == text
     doc = json.loads(text)
-    assert doc["schema"] == "fieldcal.calibration" and doc["schema_version"] == 1
+    assert doc["schema"] == "fieldcal.calibration" and doc["schema_version"] == 2
     assert doc["fieldcal_version"] == fieldcal.__version__
     assert doc["method"] == "mle" and doc["options"]["gamma"] == 1e-4
     assert doc["created"].startswith("20")
@@ -142,7 +135,7 @@ def test_json_round_trip_keeps_nan_and_missing_sensor():
     cal = _full_calibration()
     import dataclasses
 
-    cal = dataclasses.replace(cal, mag=None, magnetic=None, cost=float("nan"))
+    cal = dataclasses.replace(cal, mag=None, magnetic=None, diagnostics=None)
     back = Calibration.from_json(cal.to_json())
     assert back == cal and back.mag is None and np.isnan(back.cost) and back.dip_deg is None
 
@@ -216,7 +209,10 @@ def test_mag_handedness_twin_predicts_the_same_readings():
     # accel.bias[0] vs mag.gain[1,2] changes sign; mag.gain[1,2] vs dip_deg (both flip) does not
     assert twin.covariance.matrix[0, 1] == -cal.covariance.matrix[0, 1]
     assert twin.covariance.matrix[1, 2] == cal.covariance.matrix[1, 2]
-    assert twin.with_mag_handedness(mirrored=False) == cal
+    assert twin.options["mag_mirrored"] is True
+    back = twin.with_mag_handedness(mirrored=False)
+    assert back.options["mag_mirrored"] is False
+    assert dataclasses.replace(back, options=cal.options) == cal
     assert cal.with_mag_handedness(mirrored=False) is cal
 
 

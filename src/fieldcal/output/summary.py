@@ -8,7 +8,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from .model import Calibration, SensorCalibration
+from ..calibration import Calibration, SensorCalibration
 
 __all__ = ["print_summary", "print_truth_comparison"]
 

@@ -15,8 +15,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .model import Calibration, SensorCalibration, _ArrayDataclass, canonical_gauge
-from .rotations import exp_so3, random_rotations
+from .._frozen import ArrayDataclass
+from ..calibration import Calibration, SensorCalibration
+from ..geometry.gauge import canonical_gauge
+from ..geometry.rotations import exp_so3, random_rotations
 
 __all__ = ["PRESETS", "Session", "simulate"]
 
@@ -58,7 +60,7 @@ PRESETS["hard"] = {
 
 
 @dataclass(frozen=True, eq=False)
-class Session(_ArrayDataclass):
+class Session(ArrayDataclass):
     """A simulated session.
 
     Attributes
@@ -193,7 +195,6 @@ def simulate(
         magnetic=h_c,
         rotations=R,
         method="truth",
-        cost=0.0,
         options={"preset": preset, "seed": seed, **_jsonable(params)},
     )
     drawn = {

@@ -16,19 +16,19 @@ per pose. With one sensor the rotation about its field is unobservable: each pos
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..poses import PoseStats
+from ...geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
+from ...stats.poses import PoseStats
 
 Array = NDArray[np.float64]
 
 SENSORS = ("accel", "mag")
 #: Entries (j, k) of a symmetric gain kept as parameters, row-major upper triangle.
 SYM_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-GRAVITY = np.array([0.0, 0.0, -1.0])
 
 
 def _sym_map() -> Array:
@@ -53,10 +53,13 @@ class Problem:
     sensors: tuple[str, ...]
     frame: str
     n: int
-    chol: dict[str, Array]
-    linv: dict[str, Array]
-    sqrt_w: dict[str, Array]
-    mu_w: dict[str, Array]
+    linv: dict[str, Array]  # (N, 3, 3): L_si⁻¹, whitening each pose mean
+    means: dict[str, Array]  # (N, 3): μ̂_s[i]
+    # The closed-form starts whiten with one matrix per sensor and weigh the poses:
+    # C_si ≈ C_s / w_si (exact, with w = Δ, when there is no pose-level noise).
+    start_chol: dict[str, Array]  # (3, 3)
+    start_weight: dict[str, Array]  # (N,)
+    start_mu: dict[str, Array]  # (N, 3): means whitened by start_chol
     gain_slice: dict[str, slice]
     bias_slice: dict[str, slice]
     dip_index: int | None
@@ -97,19 +100,23 @@ class State:
         )
 
 
-def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Problem:
-    """Whiten the pose means (Eq. 5) with the noise covariances (Eq. 7) and lay out parameters."""
-    sensors = tuple(s for s in SENSORS if getattr(stats, s) is not None)
+def build_problem(stats: PoseStats, frame: str) -> Problem:
+    """Whiten the pose means (Eq. 5) with their covariances (Eq. 7 plus pose-level noise) and
+    lay out the parameters."""
+    sensors = tuple(stats.sensors)
     if frame not in sensors:
         frame = sensors[0]
-    chol, linv, sqrt_w, mu_w, gs, bs = {}, {}, {}, {}, {}, {}
+    linv, means, start_chol, start_weight, start_mu, gs, bs = {}, {}, {}, {}, {}, {}, {}
     offset = 0
     for s in sensors:
-        st = getattr(stats, s)
-        chol[s] = np.linalg.cholesky(np.asarray(covs[s], dtype=float))
-        linv[s] = np.linalg.inv(chol[s])
-        sqrt_w[s] = np.sqrt(np.asarray(st.counts, dtype=float))
-        mu_w[s] = st.means @ linv[s].T
+        st = stats.sensor(s)
+        covs = st.mean_covariances()
+        linv[s] = np.linalg.inv(np.linalg.cholesky(covs))
+        means[s] = np.asarray(st.means, dtype=float)
+        ref = st.cov if st.cov is not None else np.eye(3) * st.pose_var
+        start_chol[s] = np.linalg.cholesky(ref)
+        start_weight[s] = 3.0 / np.einsum("ij,nji->n", np.linalg.inv(ref), covs)
+        start_mu[s] = np.linalg.solve(start_chol[s], means[s].T).T
         size = 6 if s == frame else 9
         gs[s] = slice(offset, offset + size)
         bs[s] = slice(offset + size, offset + size + 3)
@@ -117,19 +124,19 @@ def build_problem(stats: PoseStats, covs: dict[str, Array], frame: str) -> Probl
     dip_index = offset if len(sensors) == 2 else None
     n_global = offset + (1 if dip_index is not None else 0)
     return Problem(
-        sensors, frame, stats.n_poses, chol, linv, sqrt_w, mu_w, gs, bs, dip_index, n_global
+        sensors,
+        frame,
+        stats.n_poses,
+        linv,
+        means,
+        start_chol,
+        start_weight,
+        start_mu,
+        gs,
+        bs,
+        dip_index,
+        n_global,
     )
-
-
-def reweighted(problem: Problem, covs: dict[str, Array]) -> Problem:
-    """The same problem with other noise covariances (for the noise fixed point)."""
-    chol, linv, mu_w = dict(problem.chol), dict(problem.linv), dict(problem.mu_w)
-    for s, cov in covs.items():
-        means = problem.mu_w[s] @ problem.chol[s].T
-        chol[s] = np.linalg.cholesky(cov)
-        linv[s] = np.linalg.inv(chol[s])
-        mu_w[s] = means @ linv[s].T
-    return replace(problem, chol=chol, linv=linv, mu_w=mu_w)
 
 
 def field(problem: Problem, sensor: str, dip: float) -> Array:
@@ -137,8 +144,13 @@ def field(problem: Problem, sensor: str, dip: float) -> Array:
     if sensor == "accel":
         return GRAVITY
     if problem.joint:
-        return np.array([np.cos(dip), 0.0, np.sin(dip)])
+        return magnetic_reference(dip)
     return np.array([1.0, 0.0, 0.0])  # magnetometer alone: its field defines north
+
+
+def _whiten(linv: Array, x: Array) -> Array:
+    """``L_i⁻¹ x_i`` for a batch of vectors (N, 3)."""
+    return np.einsum("nij,nj->ni", linv, x)
 
 
 def residuals(problem: Problem, state: State) -> Array:
@@ -146,9 +158,8 @@ def residuals(problem: Problem, state: State) -> Array:
     out = []
     for s in problem.sensors:
         v = state.rotations @ field(problem, s, state.dip)
-        Kw = problem.linv[s] @ state.gains[s]
-        bw = problem.linv[s] @ state.biases[s]
-        out.append(problem.sqrt_w[s][:, None] * (v @ Kw.T + bw - problem.mu_w[s]))
+        raw = v @ state.gains[s].T + state.biases[s] - problem.means[s]
+        out.append(_whiten(problem.linv[s], raw))
     return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
 
 
@@ -173,22 +184,22 @@ def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Arra
     Jg = np.zeros((n, m, G))
     for k, s in enumerate(problem.sensors):
         rows = slice(3 * k, 3 * k + 3)
-        w = problem.sqrt_w[s]
+        linv = problem.linv[s]
         f = field(problem, s, state.dip)
         v = state.rotations @ f
-        Kw = problem.linv[s] @ state.gains[s]
+        Kw = linv @ state.gains[s]  # (N, 3, 3)
         # d(K exp(ω^) R f)/dω = −K hat(R f): written with ε to stay one matrix product
-        E = np.einsum("aj,jkl->akl", Kw, _EPS).reshape(9, 3)
-        Jp[:, rows, :] = w[:, None, None] * (v @ E.T).reshape(n, 3, 3)
+        E = np.einsum("naj,jkl->nakl", Kw, _EPS).reshape(n, 9, 3)
+        Jp[:, rows, :] = (E @ v[:, :, None]).reshape(n, 3, 3)
         # d(K v)/dK[j, k] = e_j v_k
-        JK = np.einsum("aj,nk->najk", problem.linv[s], w[:, None] * v).reshape(n * 3, 9)
+        JK = np.einsum("naj,nk->najk", linv, v).reshape(n, 3, 9)
         if problem.symmetric(s):
             JK = JK @ SYM_MAP
-        Jg[:, rows, problem.gain_slice[s]] = JK.reshape(n, 3, -1)
-        Jg[:, rows, problem.bias_slice[s]] = w[:, None, None] * problem.linv[s]
+        Jg[:, rows, problem.gain_slice[s]] = JK
+        Jg[:, rows, problem.bias_slice[s]] = linv
         if s == "mag" and problem.joint:
-            dh = np.array([-np.sin(state.dip), 0.0, np.cos(state.dip)])
-            Jg[:, rows, problem.dip_index] = w[:, None] * ((state.rotations @ dh) @ Kw.T)
+            dh = state.rotations @ magnetic_derivative(state.dip)
+            Jg[:, rows, problem.dip_index] = np.einsum("naj,nj->na", Kw, dh)
     if basis is not None:
         Jp = Jp @ basis
     return Jp, Jg
@@ -214,20 +225,6 @@ def exp_map(omega: Array) -> Array:
     R[:, 1, 2] -= x
     R[:, 2, 1] += x
     return R
-
-
-def pack(problem: Problem, state: State) -> Array:
-    """The global parameter vector of ``state`` (layout in the module docstring)."""
-    x = np.empty(problem.n_global)
-    for s in problem.sensors:
-        K = state.gains[s]
-        x[problem.gain_slice[s]] = (
-            [K[j, k] for j, k in SYM_ENTRIES] if problem.symmetric(s) else K.ravel()
-        )
-        x[problem.bias_slice[s]] = state.biases[s]
-    if problem.joint:
-        x[problem.dip_index] = state.dip
-    return x
 
 
 def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None) -> State:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["Segment", "StillResult", "detect_still", "moving_variance"]
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .model import Calibration
+from ..errors import InputError
+from ..calibration import Calibration
 
 __all__ = ["FORMATS", "export"]
 

@@ -6,13 +6,15 @@ one-line errors for what it may not.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .model import _ArrayDataclass
+from .._frozen import ArrayDataclass
+from .trimming import trim_unsteady
 
 __all__ = ["PoseStats", "SensorStats", "as_pose_list", "stats_from_means", "summarize"]
 
@@ -20,8 +22,8 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
-class SensorStats(_ArrayDataclass):
-    """One sensor's summary of N static poses.
+class SensorStats(ArrayDataclass):
+    """One sensor's summary of N static poses, with the noise model of each pose mean.
 
     Attributes
     ----------
@@ -31,28 +33,49 @@ class SensorStats(_ArrayDataclass):
         ``Δ_s[i]``, samples per pose.
     cov : (3, 3) array or None
         ``Σ̂_s``, Eq. 7 (pooled within-pose scatter divided by ``ΣΔ − N``, the generalised
-        Bessel correction); ``None`` when no pose has more than one sample.
+        Bessel correction), or the user's; ``None`` when no pose has more than one sample.
     dof : int
         ``ΣΔ − N``, the degrees of freedom of ``cov`` (a Wishart variate).
+    pose_var : float
+        ``q²``: variance per axis of the pose-level error of each mean, ``Q = q² I``.
+    trimmed : (N,) int array or None
+        Samples cut per pose as not still (:mod:`fieldcal.stats.trimming`), when trimmed.
     """
 
     means: Array
     counts: NDArray[np.int64]
     cov: Array | None
     dof: int
+    pose_var: float = 0.0
+    trimmed: NDArray[np.int64] | None = None
 
     @property
     def n_poses(self) -> int:
         return int(self.means.shape[0])
 
+    def mean_covariances(self) -> Array:
+        """(N, 3, 3): the covariance of each pose mean, ``Σ/Δ_i + q² I``."""
+        n = self.n_poses
+        total = np.broadcast_to(self.pose_var * np.eye(3), (n, 3, 3)).copy()
+        if self.cov is not None:
+            total += self.cov[None, :, :] / self.counts[:, None, None]
+        return total
+
+    def with_pose_var(self, pose_var: float) -> SensorStats:
+        """The same poses with another pose-level variance."""
+        return dataclasses.replace(self, pose_var=float(pose_var))
+
     def subset(self, index: ArrayLike) -> SensorStats:
         """Statistics of a subset of poses, keeping the pooled covariance as it is."""
         index = np.asarray(index)
-        return SensorStats(self.means[index], self.counts[index], self.cov, self.dof)
+        trimmed = None if self.trimmed is None else self.trimmed[index]
+        return dataclasses.replace(
+            self, means=self.means[index], counts=self.counts[index], trimmed=trimmed
+        )
 
 
 @dataclass(frozen=True, eq=False)
-class PoseStats(_ArrayDataclass):
+class PoseStats(ArrayDataclass):
     """Both sensors' summaries; either may be ``None`` for single-sensor calibration."""
 
     accel: SensorStats | None
@@ -62,6 +85,21 @@ class PoseStats(_ArrayDataclass):
     def n_poses(self) -> int:
         sensor = self.accel if self.accel is not None else self.mag
         return 0 if sensor is None else sensor.n_poses
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        """The sensors present, accelerometer first."""
+        return tuple(s for s in ("accel", "mag") if getattr(self, s) is not None)
+
+    def sensor(self, name: str) -> SensorStats:
+        value: SensorStats | None = getattr(self, name)
+        if value is None:
+            raise ValueError(f"no {name} poses")
+        return value
+
+    def replace(self, **sensors: SensorStats | None) -> PoseStats:
+        """The same statistics with some sensors replaced."""
+        return dataclasses.replace(self, **sensors)
 
     def subset(self, index: ArrayLike) -> PoseStats:
         return PoseStats(
@@ -131,8 +169,12 @@ def _check_finite(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
     )
 
 
-def _sensor_stats(stacked: Array, counts: NDArray[np.int64]) -> SensorStats:
-    """Eq. 5 and Eq. 7 in one pass over the concatenated samples (shifted in place)."""
+def _sensor_stats(stacked: Array, counts: NDArray[np.int64], trim: bool) -> SensorStats:
+    """Eq. 5 and Eq. 7 in one pass over the concatenated samples (shifted in place), after
+    cutting unsteady samples when ``trim``."""
+    trimmed = None
+    if trim:
+        stacked, counts, trimmed = trim_unsteady(stacked, counts)
     # Shift by one reading so the scatter below is computed on numbers of the size of the
     # signal, not of the offset: XᵀX − Σ Δ_i μ_i μ_iᵀ then loses no precision to cancellation.
     shift = stacked[0].copy()
@@ -143,13 +185,13 @@ def _sensor_stats(stacked: Array, counts: NDArray[np.int64]) -> SensorStats:
     means = shifted_means + shift  # Eq. 5
     dof = int(counts.sum() - len(counts))
     if dof <= 0:
-        return SensorStats(means, counts, None, dof)
+        return SensorStats(means, counts, None, dof, trimmed=trimmed)
     scatter = stacked.T @ stacked - sums.T @ shifted_means
     cov = scatter / dof  # Eq. 7
-    return SensorStats(means, counts, 0.5 * (cov + cov.T), dof)
+    return SensorStats(means, counts, 0.5 * (cov + cov.T), dof, trimmed=trimmed)
 
 
-def summarize(accel: object, mag: object = None) -> PoseStats:
+def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseStats:
     """Pose statistics of Sec. 3 for one or both sensors.
 
     Parameters
@@ -158,6 +200,9 @@ def summarize(accel: object, mag: object = None) -> PoseStats:
         Each a sequence of N arrays of shape (n_i, 3): the raw samples of pose i (same N and
         pose order for both sensors; n_i may differ between poses and sensors). Either may be
         ``None`` (single-sensor calibration), not both.
+    trim : bool
+        Cut samples that are not still (a bump, a tap) before Eq. 5 and 7
+        (:func:`fieldcal.stats.trimming.trim_unsteady`); the counts cut are in ``trimmed``.
 
     Returns
     -------
@@ -176,8 +221,8 @@ def summarize(accel: object, mag: object = None) -> PoseStats:
             "same order, for both sensors"
         )
     return PoseStats(
-        None if a is None else _sensor_stats(*a[1:]),
-        None if m is None else _sensor_stats(*m[1:]),
+        None if a is None else _sensor_stats(*a[1:], trim),
+        None if m is None else _sensor_stats(*m[1:], trim),
     )
 
 

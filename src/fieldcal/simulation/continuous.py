@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .rotations import exp_so3, log_so3
-from .simulate import Session, simulate
+from ..geometry.rotations import exp_so3, log_so3
+from .session import Session, simulate
 
 __all__ = ["ContinuousLog", "simulate_continuous"]
 

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InputError
-from .model import Calibration
+from ..errors import InputError
+from ..calibration import Calibration
 
 __all__ = ["write_report"]
 

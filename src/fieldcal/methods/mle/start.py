@@ -18,8 +18,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..rotations import exp_so3, wahba
-from .mle_model import GRAVITY, Problem, State, field
+from ...geometry.rotations import exp_so3, wahba
+from ...geometry.frames import GRAVITY, magnetic_reference, twin_flip
+from .model import Problem, State, field
 
 Array = NDArray[np.float64]
 
@@ -83,12 +84,12 @@ _SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
 
 def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
     """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid."""
-    w = problem.sqrt_w[sensor] ** 2
-    fit = ellipsoid(problem.mu_w[sensor], w, model)
+    w = problem.start_weight[sensor]
+    fit = ellipsoid(problem.start_mu[sensor], w, model)
     if fit is None:
         return None
     Ky, cy = fit
-    L = problem.chol[sensor]
+    L = problem.start_chol[sensor]
     K = L @ Ky
     # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
     P, _ = _sqrtm_spd(K @ K.T)
@@ -96,7 +97,7 @@ def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Arra
 
 
 def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
-    means = problem.mu_w[sensor] @ problem.chol[sensor].T
+    means = problem.means[sensor]
     u = np.linalg.solve(K, (means - b).T).T
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
@@ -160,11 +161,11 @@ def start_from_fits(problem: Problem, fits: dict[str, tuple[Array, Array]]) -> S
     (Ka, ba), (Km, bm) = fits["accel"], fits["mag"]
     u = _directions(problem, "accel", Ka, ba)
     vp = _directions(problem, "mag", Km, bm)
-    w = np.minimum(problem.sqrt_w["accel"], problem.sqrt_w["mag"]) ** 2
+    w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
     Q, c = align(u, vp, w)
     dip = float(np.arcsin(-c))  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
     v = vp @ Q.T
-    h = np.array([np.cos(dip), 0.0, np.sin(dip)])
+    h = magnetic_reference(dip)
     world = np.stack([GRAVITY, h])
     body = np.stack([u, v], axis=1)
     R = wahba(body, np.broadcast_to(world, body.shape))
@@ -197,7 +198,7 @@ def flip_other(problem: Problem, state: State, other: str) -> State:
     accelerometer with ``R_x(π)``), so the likelihood cannot choose: the magnetometer's
     handedness relative to the accelerometer decides (see ``mle.py``).
     """
-    T = np.diag([-1.0, -1.0, 1.0]) if other == "mag" else np.diag([1.0, -1.0, -1.0])
+    T = twin_flip(other)
     state = state.copy()
     state.gains[other] = -state.gains[other]
     state.dip = -state.dip
@@ -247,11 +248,11 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
     """
     if not problem.joint:
         return []
-    w = np.minimum(problem.sqrt_w["accel"], problem.sqrt_w["mag"]) ** 2
+    w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
     dirs, pens = {}, {}
     for s in ("accel", "mag"):
-        K, c, ok = _pencil(problem.mu_w[s], problem.sqrt_w[s] ** 2, n_grid)
-        y = problem.mu_w[s]
+        K, c, ok = _pencil(problem.start_mu[s], problem.start_weight[s], n_grid)
+        y = problem.start_mu[s]
         u = np.linalg.solve(K[:, None], (y[None] - c[:, None])[..., None])[..., 0]
         u /= np.linalg.norm(u, axis=-1, keepdims=True)
         dirs[s], pens[s] = u, (K, c, ok)
@@ -279,7 +280,7 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
         fits = {}
         for s, i in (("accel", ia[p]), ("mag", im[p])):
             K, centre, _ = pens[s]
-            L = problem.chol[s]
+            L = problem.start_chol[s]
             Kr = L @ K[i]
             P, _ = _sqrtm_spd(Kr @ Kr.T)
             fits[s] = (P, L @ centre[i])

@@ -1,0 +1,659 @@
+"""The calibration result: sensors, fields, pose rotations, uncertainty and the verdict.
+
+Model (seed paper Eq. 1, 4). While the device rests in pose ``i`` each sensor ``s`` reads
+
+    s_s[i, j] = K_s R_i f_s + b_s + ε,   ε ~ N(0, Σ_s)
+
+with ``K_s`` the gain matrix (scale, cross-axis, soft iron), ``b_s`` the bias (offset, hard
+iron), ``R_i`` the rotation from the world frame to the body frame and ``f_s`` the reference
+field in the world frame (conventions in :mod:`fieldcal.geometry.frames`). Each pose mean also
+carries a pose-level error of covariance ``Q_s`` (``pose_noise_std² I``) that does not average
+away with the samples. The inverse model maps a raw reading to the common body frame:
+``K_s⁻¹ (raw − b_s)``.
+
+Everything here is stored once: standard errors are derived from :attr:`Calibration.covariance`,
+the cost from :attr:`Calibration.diagnostics`; the JSON form lives in :mod:`fieldcal.serialize`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import functools
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._frozen import ArrayDataclass, frozen_array
+from ._version import __version__
+from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
+from .geometry.frames import (
+    dip_of,
+    misalignment_angle_deg,
+    misalignment_rotvec,
+    nearest_signed_permutation,
+    orthogonal_polar_factor,
+    twin_flip,
+)
+
+__all__ = [
+    "SENSORS",
+    "Accuracy",
+    "Calibration",
+    "Diagnostics",
+    "ParameterCovariance",
+    "RejectedPose",
+    "SensorCalibration",
+    "Verdict",
+]
+
+Array = NDArray[np.float64]
+Sensor = Literal["accel", "mag"]
+
+_MATRIX = {"shape": (3, 3)}
+_VECTOR = {"shape": (3,)}
+
+#: The sensors of the joint model, in the order every table and parameter vector uses.
+SENSORS: tuple[Sensor, ...] = ("accel", "mag")
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterCovariance(ArrayDataclass):
+    """Covariance of named global parameters (Cramér-Rao bound at the optimum).
+
+    Names follow ``"accel.gain[i,j]"``, ``"accel.bias[i]"``, ``"mag.gain[i,j]"``,
+    ``"mag.bias[i]"`` and ``"dip_deg"`` (0-based indices); gains in the units of
+    :class:`SensorCalibration`, the dip in degrees.
+    """
+
+    names: tuple[str, ...]
+    matrix: Array = field(metadata={"shape": (-1, -1)})
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "names", tuple(self.names))
+        matrix = frozen_array(self.matrix)
+        if matrix.shape != (len(self.names), len(self.names)):
+            raise ValueError("covariance matrix must be square and match the names")
+        object.__setattr__(self, "matrix", matrix)
+
+    def index(self, name: str) -> int:
+        """Position of parameter ``name``; ``KeyError`` listing the known names."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"no parameter named {name!r}; known: {', '.join(self.names)}") from None
+
+    def std(self, name: str) -> float:
+        """Standard error of one named parameter."""
+        i = self.index(name)
+        return float(np.sqrt(max(self.matrix[i, i], 0.0)))
+
+    def stds(self, names: list[str]) -> Array:
+        """Standard errors of several parameters (0 for names not present)."""
+        diag = np.maximum(np.diag(self.matrix), 0.0)
+        where = {n: i for i, n in enumerate(self.names)}
+        return np.array([np.sqrt(diag[where[n]]) if n in where else 0.0 for n in names])
+
+    def scaled(self, factors: Mapping[str, float]) -> ParameterCovariance:
+        """Rescale parameters whose name starts with a key of ``factors`` (e.g. "accel.gain")."""
+        s = np.ones(len(self.names))
+        for i, name in enumerate(self.names):
+            for prefix, factor in factors.items():
+                if name.startswith(prefix):
+                    s[i] = factor
+        return ParameterCovariance(self.names, self.matrix * np.outer(s, s))
+
+    def transformed(self, T: Array) -> ParameterCovariance:
+        """The covariance of ``T @ parameters`` (same names)."""
+        return ParameterCovariance(self.names, T @ self.matrix @ T.T)
+
+
+def _gain_names(sensor: str) -> list[str]:
+    return [f"{sensor}.gain[{j},{k}]" for j in range(3) for k in range(3)]
+
+
+def _bias_names(sensor: str) -> list[str]:
+    return [f"{sensor}.bias[{j}]" for j in range(3)]
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnostics(ArrayDataclass):
+    """Goodness of fit at the end of a calibration.
+
+    ``statistic`` is the cost ``J`` of Eq. 8 (the sum over poses and sensors of
+    ``rᵀ C_i⁻¹ r`` with the pose mean's covariance ``C_i = Σ/Δ_i + Q``), which at the
+    maximum-likelihood optimum follows a χ² distribution with ``dof`` degrees of freedom
+    (``3N − 22`` for the joint problem); ``p_value`` is its upper tail probability.
+    ``pose_cost`` (N,) is each pose's contribution to ``J``. ``status`` is a short word from a
+    fixed set (``"ok"``, ``"degenerate poses"``, ``"pose noise estimated"`` ...).
+    """
+
+    statistic: float
+    dof: int
+    p_value: float
+    pose_cost: Array = field(metadata={"shape": (-1,)})
+    status: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "pose_cost", frozen_array(self.pose_cost))
+        object.__setattr__(self, "statistic", float(self.statistic))
+        object.__setattr__(self, "p_value", float(self.p_value))
+        object.__setattr__(self, "dof", int(self.dof))
+
+    @property
+    def pose_share(self) -> Array:
+        """Each pose's share of the total cost (sums to 1)."""
+        total = float(np.sum(self.pose_cost))
+        return self.pose_cost / total if total > 0 else np.zeros_like(self.pose_cost)
+
+
+@dataclass(frozen=True, eq=False)
+class SensorCalibration(ArrayDataclass):
+    """One sensor's parameters in the model ``mean raw reading = gain @ R_i @ field + bias``.
+
+    Attributes
+    ----------
+    gain : (3, 3) array
+        ``K_s``: maps a body-frame field vector to raw units (scale, cross-axis, soft iron).
+    bias : (3,) array
+        ``b_s`` in raw units (offset, hard iron).
+    noise_cov : (3, 3) array
+        ``Σ_s``, covariance of one raw sample, raw units squared.
+    noise_cov_std : (3, 3) array or None
+        Standard error of each entry of ``noise_cov`` (Wishart for the within-pose scatter).
+    noise_source : str
+        How ``noise_cov`` was obtained: ``"scatter"`` (Eq. 7, within-pose scatter),
+        ``"residuals"`` (one sample per pose: isotropic, from the fit's residuals) or ``"user"``.
+    pose_noise_std : float
+        ``q_s``: standard deviation (raw units, per axis) of the pose-level error that each pose
+        mean carries on top of ``Σ_s/Δ_i`` (non-linearity, a field varying across the desk,
+        drift, flexing). 0 when the data show none.
+    pose_noise_std_se : float or None
+        Its standard error (``None`` when it was not estimated).
+    covariance : ParameterCovariance or None
+        This sensor's block of :attr:`Calibration.covariance` (names ``"gain[j,k]"``,
+        ``"bias[j]"``), filled in by the :class:`Calibration` that holds the sensor.
+    """
+
+    gain: Array = field(metadata=_MATRIX)
+    bias: Array = field(metadata=_VECTOR)
+    noise_cov: Array = field(metadata=_MATRIX)
+    noise_cov_std: Array | None = field(default=None, metadata=_MATRIX)
+    noise_source: str = "scatter"
+    pose_noise_std: float = 0.0
+    pose_noise_std_se: float | None = None
+    covariance: ParameterCovariance | None = field(
+        default=None, repr=False, metadata={"stored": False}
+    )
+
+    JSON_DERIVED = ("gain_std", "bias_std")
+
+    def __post_init__(self) -> None:
+        for name in ("gain", "bias", "noise_cov", "noise_cov_std"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, frozen_array(value))
+        object.__setattr__(self, "pose_noise_std", float(self.pose_noise_std))
+        if self.pose_noise_std_se is not None:
+            object.__setattr__(self, "pose_noise_std_se", float(self.pose_noise_std_se))
+
+    @property
+    def gain_std(self) -> Array | None:
+        """Standard error of each entry of ``gain`` (from :attr:`covariance`), or ``None``."""
+        if self.covariance is None:
+            return None
+        return self.covariance.stds([n.split(".", 1)[1] for n in _gain_names("s")]).reshape(3, 3)
+
+    @property
+    def bias_std(self) -> Array | None:
+        """Standard error of each entry of ``bias`` (from :attr:`covariance`), or ``None``."""
+        if self.covariance is None:
+            return None
+        return self.covariance.stds([n.split(".", 1)[1] for n in _bias_names("s")])
+
+    def predict(self, rotations: Array, reference: Array) -> Array:
+        """Noise-free mean reading per pose, ``gain @ R_i @ reference + bias`` (Eq. 4)."""
+        body = np.einsum("nij,j->ni", np.asarray(rotations, dtype=float), reference)
+        return self.distort(body)
+
+    def distort(self, body: ArrayLike) -> Array:
+        """Forward model: body-frame vectors (..., 3) -> raw readings ``gain @ v + bias``."""
+        return np.asarray(body, dtype=float) @ self.gain.T + self.bias
+
+    def correct(self, raw: ArrayLike) -> Array:
+        """Inverse model: raw readings (..., 3) -> body-frame vectors ``gain⁻¹ (raw − bias)``."""
+        raw = np.asarray(raw, dtype=float)
+        if raw.shape[-1:] != (3,):
+            raise ValueError(f"raw readings must have shape (..., 3), got {raw.shape}")
+        return np.linalg.solve(self.gain, (raw - self.bias).reshape(-1, 3).T).T.reshape(raw.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class RejectedPose(ArrayDataclass):
+    """A pose left out of the fit because its readings do not fit the model.
+
+    ``index`` is the pose's number in the caller's numbering; ``sensor`` is ``"accel"``,
+    ``"mag"`` or ``"both"``; ``statistic`` the pose's outlier statistic (leverage-corrected,
+    whitened residual, see ``docs/trust.md``) and ``p_value`` its tail probability under the
+    model; ``reason`` one line naming the likely cause.
+    """
+
+    index: int
+    sensor: str
+    statistic: float
+    p_value: float
+    reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class Verdict(ArrayDataclass):
+    """Whether to trust the calibration: ``level`` in ``"pass" | "warn" | "fail"`` and one
+    line per reason, each naming the cause and the fix (rules in ``docs/trust.md``)."""
+
+    level: str
+    reasons: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.level not in ("pass", "warn", "fail"):
+            raise ValueError(f"verdict level must be pass, warn or fail, got {self.level!r}")
+        object.__setattr__(self, "reasons", tuple(self.reasons))
+
+
+@dataclass(frozen=True, eq=False)
+class Accuracy(ArrayDataclass):
+    """Predicted 1σ errors after calibration, in the user's terms (``None``: not applicable).
+
+    ``tilt_deg``: the angle between the true and the corrected gravity direction, RMS over
+    orientations. ``heading_deg``: a tilt-compensated compass heading for a level device, RMS
+    over headings. ``accel_norm_rel`` / ``mag_norm_rel``: the relative error of ``|a|`` and
+    ``|m|``, RMS over orientations. From the parameter covariance plus the pose-level noise.
+    """
+
+    tilt_deg: float | None = None
+    heading_deg: float | None = None
+    accel_norm_rel: float | None = None
+    mag_norm_rel: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration(ArrayDataclass):
+    """The result of a calibration: both sensors, the fields, every pose's rotation.
+
+    Conventions (:mod:`fieldcal.geometry.frames`, ``docs/conventions.md``): world frame
+    North-East-Down with ``gravity = (0, 0, −|g|)`` (the accelerometer's reading at rest, "up")
+    and ``magnetic = |h| (cos dip, 0, sin dip)``; ``rotations[i]`` maps world vectors to the
+    body frame in pose ``i``; a sensor reads ``gain @ R_i @ field + bias`` on average.
+
+    Attributes
+    ----------
+    accel, mag : SensorCalibration or None
+        ``None`` for a sensor that was not calibrated.
+    gravity, magnetic : (3,) arrays or None
+        Reference fields in the world frame of Eq. 2.
+    rotations : (N, 3, 3) array
+        ``R_i``, world frame to body frame, per pose used in the fit.
+    method : str
+        The method's registry name (or ``"truth"`` for simulated truth).
+    iterations : int
+    converged : bool
+        Whether the optimiser converged; nothing else (plausibility is in :attr:`verdict`).
+    message : str
+        The method's own one-line account of its optimisation (fits used, stopping reason).
+    options : dict
+        What was used, for provenance: every method option, ``body_frame``, ``mag_mirrored``,
+        the noise sources.
+    covariance : ParameterCovariance or None
+        Joint covariance of the named global parameters; every standard error derives from it.
+    diagnostics : Diagnostics or None
+        Fit certificate and per-pose cost.
+    poses : tuple of dict
+        One entry per pose (``index``, ``samples``, ``cost``, ``share``, ``trimmed`` and, from
+        log files, ``start``/``stop`` or ``label``); written as the ``poses`` list in JSON.
+    verdict : Verdict or None
+        Whether to trust the result, with reasons.
+    rejected : tuple of RejectedPose
+        Poses dropped by the robust fit.
+    accuracy : Accuracy or None
+        Predicted errors in the user's terms.
+    units : dict
+        Units of raw and calibrated readings, for humans and exports.
+    version, created : str
+        fieldcal version and ISO 8601 UTC time that produced the result (provenance: not part
+        of equality).
+    """
+
+    accel: SensorCalibration | None
+    mag: SensorCalibration | None
+    gravity: Array | None = field(metadata=_VECTOR)
+    magnetic: Array | None = field(metadata=_VECTOR)
+    rotations: Array = field(metadata={"shape": (-1, 3, 3)})
+    method: str
+    iterations: int = 0
+    converged: bool = True
+    message: str = ""
+    options: dict[str, Any] = field(default_factory=dict)
+    covariance: ParameterCovariance | None = field(default=None, repr=False)
+    diagnostics: Diagnostics | None = field(default=None, repr=False)
+    poses: tuple[dict[str, Any], ...] = field(default=(), repr=False)
+    verdict: Verdict | None = None
+    rejected: tuple[RejectedPose, ...] = ()
+    accuracy: Accuracy | None = None
+    units: dict[str, str] = field(default_factory=dict, repr=False)
+    version: str = field(default="", compare=False, repr=False, metadata={"key": "fieldcal_version"})
+    created: str = field(default="", compare=False, repr=False)
+
+    JSON_DERIVED = (
+        "dip_deg",
+        "dip_std_deg",
+        "misalignment_deg",
+        "misalignment_std_deg",
+        "cost",
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("gravity", "magnetic", "rotations"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, frozen_array(value))
+        object.__setattr__(self, "poses", tuple(dict(p) for p in self.poses))
+        object.__setattr__(self, "rejected", tuple(self.rejected))
+        object.__setattr__(self, "iterations", int(self.iterations))
+        object.__setattr__(self, "converged", bool(self.converged))
+        for name in ("accel", "mag"):  # each sensor sees its block of the one covariance
+            sensor = getattr(self, name)
+            if sensor is not None:
+                block = _sensor_block(self.covariance, name)
+                if block != sensor.covariance:
+                    object.__setattr__(self, name, dataclasses.replace(sensor, covariance=block))
+        if not self.version:
+            object.__setattr__(self, "version", __version__)
+        if not self.created:
+            now = _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat()
+            object.__setattr__(self, "created", now)
+        if not self.units:
+            object.__setattr__(self, "units", _default_units(self))
+
+    def __repr__(self) -> str:
+        sensors = "+".join(s for s in SENSORS if getattr(self, s) is not None) or "none"
+        parts = [f"method={self.method!r}"]
+        if self.verdict is not None:
+            parts.append(f"verdict={self.verdict.level!r}")
+        parts.append(f"poses={self.n_poses}")
+        parts.append(f"sensors={sensors}")
+        if self.dip_deg is not None:
+            std = self.dip_std_deg
+            parts.append(f"dip={self.dip_deg:.3f}" + (f"±{std:.2g}°" if std is not None else "°"))
+        if self.rejected:
+            parts.append(f"rejected={len(self.rejected)}")
+        return f"Calibration({', '.join(parts)})"
+
+    # ----------------------------------------------------------------- derived quantities
+    @property
+    def n_poses(self) -> int:
+        """Number of poses in the fit (rejected ones excluded)."""
+        return int(self.rotations.shape[0])
+
+    @property
+    def cost(self) -> float:
+        """``J`` of Eq. 8 at the end (:attr:`diagnostics`' statistic; NaN without one)."""
+        return float("nan") if self.diagnostics is None else self.diagnostics.statistic
+
+    @property
+    def dip_deg(self) -> float | None:
+        """Magnetic dip in degrees, positive when the field points below the horizon."""
+        if self.magnetic is None or self.gravity is None:
+            return None
+        return dip_of(self.magnetic)
+
+    @property
+    def dip_std_deg(self) -> float | None:
+        """Standard error of :attr:`dip_deg` (degrees), from :attr:`covariance`."""
+        if self.covariance is None or "dip_deg" not in self.covariance.names:
+            return None
+        return self.covariance.std("dip_deg")
+
+    @property
+    def gravity_norm(self) -> float | None:
+        """``|g|``: the unit of the calibrated accelerometer."""
+        return None if self.gravity is None else float(np.linalg.norm(self.gravity))
+
+    @property
+    def field_strength(self) -> float | None:
+        """``|h|``: the unit of the calibrated magnetometer."""
+        return None if self.magnetic is None else float(np.linalg.norm(self.magnetic))
+
+    @property
+    def misalignment_deg(self) -> float | None:
+        """Angle between the magnetometer's and the accelerometer's axes (degrees)."""
+        if self.accel is None or self.mag is None:
+            return None
+        return misalignment_angle_deg(self.accel.gain, self.mag.gain)
+
+    @functools.cached_property
+    def misalignment_std_deg(self) -> float | None:
+        """Delta-method standard error (degrees) of :attr:`misalignment_deg`.
+
+        Far from 0 the angle is smooth: ``σ = sqrt(nᵀ C_θ n)`` along its rotation vector θ.
+        Near 0 (within 3σ) the angle is the norm of a nearly centred vector; ``sqrt(tr C_θ)``
+        is then reported (its root mean square spread).
+        """
+        if self.accel is None or self.mag is None or self.covariance is None:
+            return None
+        names = _gain_names("accel") + _gain_names("mag")
+        if not all(n in self.covariance.names for n in names):
+            return None
+        Ka, Km = self.accel.gain, self.mag.gain
+        S = nearest_signed_permutation(
+            orthogonal_polar_factor(Km) @ orthogonal_polar_factor(Ka).T
+        )
+        h = 1e-6 * max(float(np.abs(Ka).max()), float(np.abs(Km).max()))
+        steps = (np.eye(9) * h).reshape(9, 3, 3)
+        Kas = np.concatenate([Ka[None], Ka + steps, np.broadcast_to(Ka, (9, 3, 3))])
+        Kms = np.concatenate([Km[None], np.broadcast_to(Km, (9, 3, 3)), Km + steps])
+        theta = misalignment_rotvec(Kas, Kms, S)
+        J = ((theta[1:] - theta[0]) / h).T  # (3, 18), forward differences
+        idx = [self.covariance.index(n) for n in names]
+        Ct = J @ self.covariance.matrix[np.ix_(idx, idx)] @ J.T
+        norm = float(np.linalg.norm(theta[0]))
+        spread = float(np.sqrt(max(np.trace(Ct), 0.0)))
+        if norm > 3.0 * spread:
+            n = theta[0] / norm
+            return float(np.degrees(np.sqrt(max(n @ Ct @ n, 0.0))))
+        return float(np.degrees(spread))
+
+    # ----------------------------------------------------------------- model
+    def sensor(self, name: str) -> SensorCalibration:
+        """The calibration of sensor ``name``; a one-line error when it was not calibrated."""
+        if name not in SENSORS:
+            raise ValueError(f"sensor must be one of {', '.join(SENSORS)}, got {name!r}")
+        value: SensorCalibration | None = getattr(self, name)
+        if value is None:
+            raise ValueError(f"this calibration has no {name}; calibrate one first")
+        return value
+
+    def reference(self, name: str) -> Array:
+        """The reference field of sensor ``name`` in the world frame."""
+        value = self.gravity if name == "accel" else self.magnetic
+        if value is None:
+            raise ValueError(f"this calibration has no {name} reference field")
+        return value
+
+    def predicted_means(self) -> tuple[Array | None, Array | None]:
+        """The model's noise-free reading per pose, ``gain @ R_i @ field + bias`` (Eq. 4)."""
+        out = [
+            None
+            if getattr(self, s) is None
+            else self.sensor(s).predict(self.rotations, self.reference(s))
+            for s in SENSORS
+        ]
+        return out[0], out[1]
+
+    def correct_accel(self, raw: ArrayLike) -> Array:
+        """Raw accelerometer readings (..., 3) -> body-frame specific force (inverse model)."""
+        return self.sensor("accel").correct(raw)
+
+    def correct_mag(self, raw: ArrayLike) -> Array:
+        """Raw magnetometer readings (..., 3) -> body-frame magnetic field (inverse model)."""
+        return self.sensor("mag").correct(raw)
+
+    def with_field_magnitudes(
+        self, gravity: float | None = None, field_strength: float | None = None
+    ) -> Calibration:
+        """The same calibration with ``|g| = gravity`` and ``|h| = field_strength``.
+
+        Gains (and their covariance entries) are divided by the new magnitude relative to the
+        old one; every predicted reading is unchanged.
+        """
+        changes: dict[str, Any] = {}
+        factors: dict[str, float] = {}
+        for name, value, label in (
+            ("accel", gravity, "gravity"),
+            ("mag", field_strength, "field_strength"),
+        ):
+            sensor, ref = getattr(self, name), self.gravity if name == "accel" else self.magnetic
+            if value is None or sensor is None or ref is None:
+                continue
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{label} must be a positive number, got {value!r}")
+            c = float(np.linalg.norm(ref)) / float(value)
+            changes[name] = dataclasses.replace(sensor, gain=sensor.gain * c)
+            changes["gravity" if name == "accel" else "magnetic"] = ref / c
+            factors[f"{name}.gain"] = c
+        if self.covariance is not None:
+            changes["covariance"] = self.covariance.scaled(factors)
+        return dataclasses.replace(self, **changes, units={})
+
+    def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
+        """The twin of this result whose magnetometer has the requested handedness.
+
+        Static poses cannot tell a magnetometer mirrored relative to the accelerometer from an
+        unmirrored one in the opposite magnetic hemisphere (:func:`fieldcal.geometry.frames.
+        twin_flip`). Both twins have the same likelihood; this picks ``det(K_a K_m) > 0``
+        (``mirrored`` false: both triads right-handed as given) or ``det(K_a K_m) < 0``. The
+        gain negated is that of the sensor that does not define the body frame.
+        """
+        if self.mag is None or self.accel is None or self.magnetic is None:
+            return self
+        relative = np.linalg.det(self.accel.gain) * np.linalg.det(self.mag.gain)
+        if (relative < 0) == bool(mirrored):
+            return self
+        Ka = self.accel.gain
+        accel_frame = np.allclose(Ka, Ka.T, rtol=0, atol=1e-9 * np.abs(Ka).max())
+        name = "mag" if accel_frame else "accel"
+        sensor = self.sensor(name)
+        h = self.magnetic
+        covariance = self.covariance
+        if covariance is not None:
+            covariance = covariance.scaled({f"{name}.gain": -1.0, "dip_deg": -1.0})
+        options = {**self.options, "mag_mirrored": bool(mirrored)}
+        return dataclasses.replace(
+            self,
+            **{name: dataclasses.replace(sensor, gain=-sensor.gain)},
+            magnetic=np.array([h[0], h[1], -h[2]]),
+            rotations=self.rotations @ twin_flip(name),
+            covariance=covariance,
+            options=options,
+        )
+
+    # ----------------------------------------------------------------- JSON
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document as Python objects (see ``docs/json-schema.md``)."""
+        body = encode(self)
+        header = {
+            "schema": SCHEMA,
+            "schema_version": SCHEMA_VERSION,
+            "fieldcal_version": body.pop("fieldcal_version"),
+            "created": body.pop("created"),
+            "method": body.pop("method"),
+            "conventions": CONVENTIONS,
+        }
+        return {**header, **body}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """Serialise to the versioned JSON schema (lossless: floats are written exactly)."""
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Calibration:
+        """Read the document of :meth:`to_dict` (any schema version up to ours).
+
+        Validated completely: a one-line ``ValueError`` names the first problem (a missing
+        key, a wrong type or shape, a non-finite or singular gain)."""
+        if not isinstance(data, Mapping):
+            raise ValueError("not a fieldcal calibration: the document is not an object")
+        cal: Calibration = decode(cls, upgrade(data))
+        cal.check_values()
+        return cal
+
+    @classmethod
+    def from_json(cls, text: str) -> Calibration:
+        """Read a calibration written by :meth:`to_json` (any schema version up to ours)."""
+        try:
+            data = json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise ValueError(f"not a fieldcal calibration JSON: {exc}") from None
+        if not isinstance(data, dict):
+            raise ValueError("not a fieldcal calibration JSON: the document is not an object")
+        return cls.from_dict(data)
+
+    def check_values(self) -> None:
+        """Refuse values no correction can use: non-finite or singular gains, non-finite
+        biases, reference fields or rotations. One-line ``ValueError`` naming the first."""
+        if self.accel is None and self.mag is None:
+            raise ValueError("invalid calibration: it has neither an accelerometer nor a magnetometer")
+        for name in SENSORS:
+            sensor = getattr(self, name)
+            if sensor is None:
+                continue
+            for part in ("gain", "bias", "noise_cov"):
+                if not np.all(np.isfinite(getattr(sensor, part))):
+                    raise ValueError(f"invalid calibration: {name}.{part} has NaN or inf entries")
+            K = sensor.gain
+            s = np.linalg.svd(K, compute_uv=False)
+            if not s[-1] > 1e-12 * s[0]:
+                raise ValueError(
+                    f"invalid calibration: {name}.gain is singular, so readings cannot be corrected"
+                )
+            ref = self.gravity if name == "accel" else self.magnetic
+            if ref is None or not np.all(np.isfinite(ref)) or not np.linalg.norm(ref) > 0:
+                raise ValueError(f"invalid calibration: the {name} reference field is not finite")
+        if not np.all(np.isfinite(self.rotations)):
+            raise ValueError("invalid calibration: rotations has NaN or inf entries")
+
+
+#: The conventions, stated in every document for readers without the docs.
+CONVENTIONS = {
+    "model": "mean raw reading in pose i = gain @ R_i @ field + bias",
+    "correction": "body = inv(gain) @ (raw - bias)",
+    "world_frame": "NED: gravity = (0, 0, -|g|), magnetic = |h| (cos dip, 0, sin dip)",
+    "rotations": "R_i maps world-frame vectors to the body frame",
+    "dip": "degrees, positive when the field points below the horizon",
+    "pose_noise_std": "raw units per axis, the pose mean's error beyond noise_cov / samples",
+}
+
+
+def _sensor_block(covariance: ParameterCovariance | None, sensor: str) -> ParameterCovariance | None:
+    """The gain and bias block of one sensor, names without the sensor prefix."""
+    if covariance is None:
+        return None
+    names = [n for n in _gain_names(sensor) + _bias_names(sensor) if n in covariance.names]
+    if not names:
+        return None
+    idx = [covariance.index(n) for n in names]
+    return ParameterCovariance(
+        tuple(n.split(".", 1)[1] for n in names), covariance.matrix[np.ix_(idx, idx)]
+    )
+
+
+def _default_units(cal: Calibration) -> dict[str, str]:
+    g = cal.gravity_norm
+    h = cal.field_strength
+    units = {"accel_raw": "as given", "mag_raw": "as given"}
+    units["accel_calibrated"] = "|g| = 1" if g is None or g == 1.0 else f"|g| = {g:g}"
+    units["mag_calibrated"] = "|h| = 1" if h is None or h == 1.0 else f"|h| = {h:g}"
+    units["angles"] = "degrees"
+    return units

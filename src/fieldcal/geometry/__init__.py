@@ -1,0 +1,1 @@
+"""Geometry: SO(3) tools, the frames and conventions, the gauge, quadric (ellipsoid) fits."""

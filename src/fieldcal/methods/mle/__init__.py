@@ -1,0 +1,252 @@
+"""method="mle": joint maximum likelihood (Eq. 8), globally initialised.
+
+Orchestration only; the pieces live in
+
+- :mod:`.model` — parameters, whitened residuals of Eq. 8 and their analytic Jacobians;
+- :mod:`.start` — closed-form starts (ellipsoids, constant gravity-field angle, Wahba);
+- :mod:`.lm` — Levenberg-Marquardt on SO(3) with the Schur complement;
+- :mod:`.uncertainty` — Cramér-Rao covariance, delta method, degrees-of-freedom split.
+
+The certificate, the pose-level noise and the error bars are the shared trust path's
+(:mod:`fieldcal.trust`), the same for every method. ``docs/methods/mle.md`` describes the method.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.special import chdtrc
+
+from ...calibration import Calibration, SensorCalibration
+from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
+from ...stats.poses import PoseStats
+from .lm import Result, levenberg_marquardt, normal_equations
+from .model import Problem, State, build_problem, field, residuals
+from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
+from .uncertainty import global_covariance
+
+__all__ = ["check_spread", "fit", "state_from_calibration"]
+
+#: Closed-form starts (accelerometer's, magnetometer's ellipsoid family), in order: the first two
+#: always run, the others when the poses are few or the certificate is doubtful.
+_FAMILIES = ("full", "axes", "sphere")
+STARTS = (
+    ("full", "full"),
+    ("axes", "axes"),
+    *((a, m) for a in _FAMILIES for m in _FAMILIES if a != m or a == "sphere"),
+)
+#: Below this many poses every start runs (the likelihood has more local minima).
+FEW_POSES = 12
+#: Below this many poses the ellipsoids' pencils are searched jointly for further starts.
+PENCIL_POSES = 12
+#: Certificate p-value below which every start runs.
+P_RETRY = 0.01
+#: Jacobi-scaled condition number of the reduced system above which the poses are degenerate.
+COND_WARN = 1e10
+
+
+def _axis_name(n: np.ndarray) -> str:
+    k = int(np.argmax(np.abs(n)))
+    return "xyz"[k]
+
+
+def check_spread(stats: PoseStats) -> None:
+    """Refuse poses that cannot determine an ellipsoid: all rotations about one axis.
+
+    Then the pose means of each sensor lie on a circle (a plane) or on a point; the plane's
+    normal is, up to the small gain errors, the rotation axis, and poses with that axis tilted
+    out of the horizontal plane are what is missing.
+    """
+    for name in ("accel", "mag"):
+        st = getattr(stats, name)
+        if st is None:
+            continue
+        centred = st.means - st.means.mean(axis=0)
+        _, sv, Vt = np.linalg.svd(centred, full_matrices=False)
+        if sv[0] <= 1e-12 * max(1.0, float(np.abs(st.means).max())) or sv[1] < 0.02 * sv[0]:
+            raise ValueError(
+                f"degenerate poses: the {name} readings barely change from pose to pose or lie "
+                "on a line; turn the device so that each of its axes points up and down in turn"
+            )
+        if sv[2] < 0.02 * sv[0]:
+            ax = _axis_name(Vt[2])
+            raise ValueError(
+                f"degenerate poses: the {name} readings lie in one plane (all rotations about "
+                f"one axis, near the sensor's {ax} axis); add poses with the {ax} axis pointing "
+                f"up and down (tilted 45° or more)"
+            )
+
+
+def state_from_calibration(problem: Problem, cal: Calibration) -> State:
+    """The optimiser's state for any calibration in fieldcal's gauge."""
+    gains = {s: np.array(cal.sensor(s).gain) for s in problem.sensors}
+    biases = {s: np.array(cal.sensor(s).bias) for s in problem.sensors}
+    gains[problem.frame] = 0.5 * (gains[problem.frame] + gains[problem.frame].T)
+    dip = np.radians(cal.dip_deg or 0.0) if problem.joint else 0.0
+    return State(gains, biases, float(dip), np.array(cal.rotations))
+
+
+def _canonical(problem: Problem, state: State) -> State:
+    """fieldcal's gauge: ``h_x > 0``, both triads right-handed, one-sensor headings
+    (:func:`fieldcal.calibrate` then applies the handedness the user states)."""
+    if not problem.joint:
+        s = problem.sensors[0]
+        f = field(problem, s, 0.0)
+        state = state.copy()
+        # the rotation about the field is unobservable: take the smallest rotation
+        state.rotations = min_rotations(f, state.rotations @ f)
+        return state
+    if np.cos(state.dip) < 0:  # h = (cos, 0, sin) must point north: R_i ← R_i R_z(π)
+        state = state.copy()
+        state.dip = float(np.pi - state.dip)
+        state.rotations = state.rotations @ HALF_TURN_DOWN
+    state.dip = float(np.arctan2(np.sin(state.dip), np.cos(state.dip)))
+    other = "mag" if problem.frame == "accel" else "accel"
+    # K and −K fit equally (see flip_other): the stated handedness decides, as in
+    # Calibration.with_mag_handedness, which fieldcal.calibrate applies afterwards
+    det = np.linalg.det(state.gains[other]) * np.linalg.det(state.gains[problem.frame])
+    return flip_other(problem, state, other) if det < 0 else state
+
+
+def fit(
+    stats: PoseStats,
+    *,
+    raw_accel: object = None,
+    raw_mag: object = None,
+    body_frame: str = "accel",
+    max_iter: int = 200,
+    tol: float = 1e-10,
+    initial: Calibration | None = None,
+) -> Calibration:
+    """Joint maximum-likelihood calibration (Eq. 8), see ``docs/methods/mle.md``.
+
+    Parameters
+    ----------
+    stats : PoseStats
+        Pose means with their covariances (``Σ/Δ_i + Q``, :class:`~fieldcal.stats.poses.
+        SensorStats`).
+    raw_accel, raw_mag
+        The raw samples (unused: the pose statistics are sufficient).
+    body_frame : {"accel", "mag"}
+        Which sensor's gain is symmetric, fixing the body frame (Sec. 4.3).
+    max_iter : int
+        Levenberg-Marquardt iterations per start (at least 1).
+    tol : float
+        Stop when a step lowers J by less than ``tol·(1 + J)`` (positive).
+    initial : Calibration, optional
+        A calibration to start from instead of the closed-form starts (warm start).
+
+    Returns
+    -------
+    Calibration
+        Parameters in fieldcal's gauge; ``converged`` is the optimiser's own flag; ``options``
+        records the starts tried. Uncertainty and certificate are added by the shared path.
+    """
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ValueError(f"max_iter must be a whole number of at least 1, got {max_iter!r}")
+    if isinstance(tol, bool) or not (isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be a positive finite number, got {tol!r}")
+    if initial is not None and not isinstance(initial, Calibration):
+        raise ValueError(
+            f"initial must be a fieldcal.Calibration (e.g. Calibration.from_json(text)), "
+            f"got {type(initial).__name__}"
+        )
+    sensors = stats.sensors
+    n = stats.n_poses
+    need = 8 if len(sensors) == 2 else 10
+    if n < need:
+        raise ValueError(
+            f"{n} poses given; method 'mle' needs at least {need} "
+            + (
+                "(6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
+                if need == 8
+                else "for one sensor (3N readings must outnumber 2N tilt angles plus 9 "
+                "sensor parameters)"
+            )
+        )
+    check_spread(stats)
+    problem = build_problem(stats, body_frame)
+
+    best: Result | None = None
+    tried: list[str] = []
+    total_iter = 0
+
+    def consider(state: State | None, label: str) -> None:
+        nonlocal best, total_iter
+        if state is None:
+            return
+        res = levenberg_marquardt(
+            problem,
+            state,
+            max_iter=int(max_iter),
+            tol=float(tol),
+            known_minimum=None if best is None else best.cost,
+        )
+        total_iter += res.iterations
+        tried.append(label)
+        if best is None or res.cost < best.cost - 1e-9 * (1 + res.cost):
+            best = res
+
+    def label(model: tuple[str, str]) -> str:
+        return model[0] if len(problem.sensors) == 1 or model[0] == model[1] else "/".join(model)
+
+    if initial is not None:
+        consider(state_from_calibration(problem, initial), "initial")
+        starts = STARTS
+    else:
+        for model in STARTS[:2]:
+            consider(closed_form_start(problem, model), label(model))
+        starts = STARTS[2:]
+    if len(problem.sensors) == 1:
+        starts = tuple(m for m in starts if m[0] == m[1])
+    few = n < FEW_POSES and initial is None
+    # a doubtful certificate (or pose-level noise not yet estimated) may mean a local minimum
+    if few or best is None or chdtrc(problem.dof, best.cost) < P_RETRY:
+        for model in starts:
+            if label(model) not in tried:
+                consider(closed_form_start(problem, model), label(model))
+        if n < PENCIL_POSES:
+            for k, state in enumerate(few_pose_starts(problem)):
+                consider(state, f"pencil{k}")
+    if best is None:
+        raise ValueError(
+            "no closed-form start: the pose means do not outline an ellipsoid; "
+            "add poses with each axis pointing up and down"
+        )
+    state = _canonical(problem, best.state)
+    e = residuals(problem, state)
+    _, _, _, condition = global_covariance(normal_equations(problem, state, e))
+    if condition > COND_WARN:
+        warnings.warn(_degenerate_message(problem, state, condition), stacklevel=3)
+    sensor_cals = {
+        s: SensorCalibration(
+            gain=state.gains[s],
+            bias=state.biases[s],
+            noise_cov=np.zeros((3, 3)) if stats.sensor(s).cov is None else stats.sensor(s).cov,
+        )
+        for s in sensors
+    }
+    return Calibration(
+        accel=sensor_cals.get("accel"),
+        mag=sensor_cals.get("mag"),
+        gravity=GRAVITY if "accel" in sensors else None,
+        magnetic=field(problem, "mag", state.dip) if "mag" in sensors else None,
+        rotations=state.rotations,
+        method="mle",
+        iterations=total_iter,
+        converged=bool(best.converged),
+        options={"max_iter": int(max_iter), "tol": float(tol), "starts": tried},
+    )
+
+
+def _degenerate_message(problem: Problem, state: State, cond: float) -> str:
+    """Name the body axis the gravity (or field) directions cover least."""
+    s = problem.sensors[0]
+    u = state.rotations @ field(problem, s, state.dip)
+    _, V = np.linalg.eigh(u.T @ u)
+    ax = _axis_name(V[:, 0])
+    return (
+        f"mle: the poses barely determine the calibration (reduced system condition number "
+        f"{cond:.2g}); add poses with the body's {ax} axis pointing up and down"
+    )

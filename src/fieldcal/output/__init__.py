@@ -1,0 +1,1 @@
+"""Where results go: export formats, terminal summaries, the HTML report."""

@@ -1,0 +1,220 @@
+"""The versioned JSON form of frozen result dataclasses, written and read by walking their fields.
+
+Each field is named once, in its dataclass. Field metadata says what the walker needs:
+``shape`` (an array's shape, ``-1`` for any length), ``key`` (a JSON key other than the field
+name), ``stored=False`` (derived, not written). A class may list ``JSON_DERIVED`` attribute
+names written for human readers (standard errors, the dip) and ignored when reading.
+
+Reading validates completely (types, shapes, finiteness, booleans that are booleans) and names
+the first problem in one line, so nothing downstream sees a malformed document. Numbers are
+written exactly (``repr`` round trip); NaN and infinity as the strings ``"nan"``, ``"inf"``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SCHEMA", "SCHEMA_VERSION", "decode", "encode", "upgrade"]
+
+SCHEMA = "fieldcal.calibration"
+#: 2: derived values (standard errors, cost) are no longer read back; pose-level noise,
+#: verdict, rejected poses and accuracy added. Version 1 documents (fieldcal 0.1) still load.
+SCHEMA_VERSION = 2
+
+_MAX_POSES = 10_000_000
+
+
+def _number(value: Any) -> Any:
+    value = float(value)
+    if math.isnan(value):
+        return "nan"
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return value
+
+
+def encode(value: Any) -> Any:
+    """A JSON-ready form of ``value``: dataclasses as dicts of their stored fields (plus their
+    ``JSON_DERIVED`` values), arrays as nested lists, NaN/inf as strings."""
+    if value is None or isinstance(value, str):
+        return value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {}
+        for f in dataclasses.fields(value):
+            if f.metadata.get("stored", True):
+                out[f.metadata.get("key", f.name)] = encode(getattr(value, f.name))
+        for name in getattr(value, "JSON_DERIVED", ()):
+            out[name] = encode(getattr(value, name))
+        return out
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "fc":
+            return encode(value.tolist())
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [encode(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): encode(v) for k, v in value.items()}
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return _number(value)
+    return str(value)
+
+
+# ----------------------------------------------------------------------------- reading
+def _fail(where: str, what: str) -> typing.NoReturn:
+    raise ValueError(f"invalid calibration file: {where} {what}; write it again with fieldcal")
+
+
+def _float(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        _fail(where, f"must be a number, not {type(value).__name__}")
+    if isinstance(value, str):
+        if value not in ("nan", "inf", "-inf"):
+            _fail(where, f"must be a number, not the text {value[:20]!r}")
+        return float(value)
+    return float(value)
+
+
+def _array(value: Any, where: str, shape: tuple[int, ...] | None) -> np.ndarray:
+    def walk(v: Any, depth: int) -> Any:
+        if isinstance(v, list):
+            if depth > 4:
+                _fail(where, "is nested too deeply")
+            return [walk(x, depth + 1) for x in v]
+        return _float(v, where)
+
+    if not isinstance(value, list):
+        _fail(where, f"must be a list of numbers, not {type(value).__name__}")
+    try:
+        array = np.array(walk(value, 0), dtype=float)
+    except ValueError:
+        _fail(where, "has rows of different lengths")
+    if shape is not None:
+        ok = array.ndim == len(shape) and all(
+            want in (-1, got) for want, got in zip(shape, array.shape, strict=True)
+        )
+        if not ok and not (array.size == 0 and shape[0] == -1):
+            wanted = "x".join("N" if s == -1 else str(s) for s in shape)
+            _fail(where, f"must have shape {wanted}, got {list(array.shape)}")
+        if array.size == 0 and shape[0] == -1:
+            array = array.reshape((0, *[max(s, 0) for s in shape[1:]]))
+    return array
+
+
+def _is_array_hint(hint: Any) -> bool:
+    return typing.get_origin(hint) is np.ndarray or hint is np.ndarray
+
+
+def _decode_value(hint: Any, value: Any, where: str, meta: Mapping[str, Any]) -> Any:
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None:
+            return None
+        return _decode_value(args[0], value, where, meta)
+    if _is_array_hint(hint):
+        return _array(value, where, meta.get("shape"))
+    if dataclasses.is_dataclass(hint):
+        return decode(hint, value, where)  # type: ignore[arg-type]
+    if hint is float:
+        return _float(value, where)
+    if hint is bool:
+        if not isinstance(value, bool):
+            _fail(where, f"must be true or false, not {value!r}"[:120])
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            _fail(where, f"must be a whole number, not {value!r}"[:120])
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            _fail(where, f"must be text, not {type(value).__name__}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list):
+            _fail(where, f"must be a list, not {type(value).__name__}")
+        item = typing.get_args(hint)[0]
+        if len(value) > _MAX_POSES:
+            _fail(where, "is too long")
+        return tuple(_decode_value(item, v, f"{where}[{i}]", {}) for i, v in enumerate(value))
+    if origin is dict:
+        if not isinstance(value, dict):
+            _fail(where, f"must be an object, not {type(value).__name__}")
+        if typing.get_args(hint)[1] is str:
+            for k, v in value.items():
+                if not isinstance(v, str):
+                    _fail(f"{where}.{k}", "must be text")
+        return dict(value)
+    return value  # typing.Any: kept as read
+
+
+def decode(cls: type, data: Any, where: str = "document") -> Any:
+    """Build dataclass ``cls`` from ``data`` (as written by :func:`encode`), validating every
+    stored field; unknown keys (derived values, newer additions) are ignored."""
+    if not isinstance(data, Mapping):
+        _fail(where, f"must be an object, not {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if not f.metadata.get("stored", True):
+            continue
+        key = f.metadata.get("key", f.name)
+        if key not in data:
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                _fail(where, f"has no {key!r}")
+            continue
+        kwargs[f.name] = _decode_value(hints[f.name], data[key], f"{where}.{key}", f.metadata)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        _fail(where, f"is not valid ({' '.join(str(exc).split())})")
+
+
+# ----------------------------------------------------------------------------- versions
+def _v1_to_v2(data: dict[str, Any]) -> dict[str, Any]:
+    """fieldcal 0.1 wrote ``converged=False`` for an implausible fit and had no verdict: the
+    optimiser's own flag is not recoverable, so an implausible v1 fit reads as converged with
+    its certificate kept in ``diagnostics``."""
+    out = dict(data)
+    diag = out.get("diagnostics")
+    if isinstance(diag, dict) and str(diag.get("status", "")).startswith("implausible"):
+        out["converged"] = True
+    return out
+
+
+UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _v1_to_v2}
+
+
+def upgrade(data: Mapping[str, Any]) -> dict[str, Any]:
+    """Check the header and bring an older document to :data:`SCHEMA_VERSION`."""
+    if data.get("schema") != SCHEMA:
+        raise ValueError(
+            f"not a fieldcal calibration (schema {str(data.get('schema'))[:40]!r}); "
+            f"expected a file written by fieldcal with schema {SCHEMA!r}"
+        )
+    version = data.get("schema_version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ValueError(
+            f"invalid calibration file: schema_version {str(version)[:20]!r} is not a version "
+            "number; write it again with fieldcal"
+        )
+    if version > SCHEMA_VERSION:
+        raise ValueError(
+            f"calibration schema version {version} is newer than this fieldcal understands "
+            f"({SCHEMA_VERSION}); upgrade fieldcal"
+        )
+    out = dict(data)
+    while version < SCHEMA_VERSION:
+        out = UPGRADES[version](out)
+        version += 1
+    return out

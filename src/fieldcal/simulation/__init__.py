@@ -1,0 +1,1 @@
+"""Simulated sessions with a known truth: still poses (Table 1) and continuous logs."""

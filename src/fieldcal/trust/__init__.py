@@ -1,0 +1,1 @@
+"""Whether to trust a calibration: certificate, pose-level noise, rejected poses, verdict, accuracy."""

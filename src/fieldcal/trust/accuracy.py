@@ -1,0 +1,149 @@
+"""Predicted errors after calibration in the user's terms: tilt, heading, |a|, |m|.
+
+A corrected reading is ``v̂ = K̂⁻¹ (raw − b̂)`` with ``raw = K v + b + n``. To first order its
+error is ``δv = K⁻¹ (n − δK v − δb)``: the parameters' errors (covariance from the fit) and the
+pose-level noise ``n ~ N(0, q² I)``, the part of a still reading's error that does not average
+away. From ``δv`` (``docs/trust.md``):
+
+- tilt: the angle between the true and corrected gravity directions, ``|(I − vvᵀ) δv|``;
+- ``|a|``, ``|m|``: the relative error of the norm, ``vᵀ δv``;
+
+each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattice);
+
+- heading: a tilt-compensated compass heading for a level device (body z down), RMS over
+  headings, with the gradient with respect to every gain and bias of both sensors and both
+  noise vectors taken by finite differences of the heading formula itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..calibration import Accuracy, Calibration, ParameterCovariance
+
+__all__ = ["predict_accuracy"]
+
+Array = NDArray[np.float64]
+
+_ORIENTATIONS = 256
+_HEADINGS = 72
+
+
+def _sphere(n: int) -> Array:
+    """``n`` unit vectors spread evenly on the sphere (Fibonacci lattice)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    r = np.sqrt(1.0 - z * z)
+    phi = np.pi * (1.0 + 5**0.5) * k
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _param_block(cov: ParameterCovariance | None, sensor: str) -> Array:
+    """(12, 12) covariance of ``vec(K)`` (row-major) and ``b`` of one sensor (zeros if none)."""
+    if cov is None:
+        return np.zeros((12, 12))
+    names = [f"{sensor}.gain[{j},{k}]" for j in range(3) for k in range(3)]
+    names += [f"{sensor}.bias[{j}]" for j in range(3)]
+    if not all(n in cov.names for n in names):
+        return np.zeros((12, 12))
+    idx = [cov.index(n) for n in names]
+    return cov.matrix[np.ix_(idx, idx)]
+
+
+def _reading_error_cov(cal: Calibration, sensor: str, v: Array) -> Array:
+    """(M, 3, 3): covariance of ``δv`` for body vectors ``v`` (M, 3) of unit length."""
+    sc = cal.sensor(sensor)
+    ref = np.linalg.norm(cal.reference(sensor))
+    u = v * ref  # the field in the calibration's units
+    G = np.zeros((len(u), 3, 12))  # d(K u + b)/d[vec K, b]
+    for j in range(3):
+        G[:, j, 3 * j : 3 * j + 3] = u
+        G[:, j, 9 + j] = 1.0
+    C = G @ _param_block(cal.covariance, sensor) @ G.transpose(0, 2, 1)
+    C = C + sc.pose_noise_std**2 * np.eye(3)
+    Kinv = np.linalg.inv(sc.gain)
+    return np.asarray(Kinv @ C @ Kinv.T / (ref * ref))  # relative to the field's magnitude
+
+
+def _norm_and_direction(cal: Calibration, sensor: str) -> tuple[float, float]:
+    v = _sphere(_ORIENTATIONS)
+    C = _reading_error_cov(cal, sensor, v)
+    radial = np.einsum("ni,nij,nj->n", v, C, v)
+    perp = np.trace(C, axis1=1, axis2=2) - radial
+    return float(np.sqrt(radial.mean())), float(np.degrees(np.sqrt(max(perp.mean(), 0.0))))
+
+
+def _heading(a: Array, m: Array) -> Array:
+    """Heading (rad) of the body x axis from body-frame specific force and field, (..., 3)."""
+    down = -a / np.linalg.norm(a, axis=-1, keepdims=True)
+    east = np.cross(down, m)
+    east /= np.linalg.norm(east, axis=-1, keepdims=True)
+    north = np.cross(east, down)
+    return np.asarray(np.arctan2(-north[..., 1], north[..., 0]))
+
+
+def _heading_error(cal: Calibration) -> float | None:
+    if cal.accel is None or cal.mag is None or cal.gravity is None or cal.magnetic is None:
+        return None
+    psi = np.linspace(0.0, 2 * np.pi, _HEADINGS, endpoint=False)
+    c, s = np.cos(psi), np.sin(psi)
+    # world -> body for a level device heading psi: a yaw about the down axis
+    R = np.zeros((_HEADINGS, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, s, -s, c, 1.0
+    raw = {
+        name: (R @ cal.reference(name)) @ cal.sensor(name).gain.T + cal.sensor(name).bias
+        for name in ("accel", "mag")
+    }
+    # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6)
+    base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
+
+    def heading_with(delta: Array) -> Array:
+        out = {}
+        for k, name in enumerate(("accel", "mag")):
+            K, b = base[name]
+            d = delta[12 * k : 12 * k + 12]
+            noise = delta[24 + 3 * k : 27 + 3 * k]
+            Kp, bp = K + d[:9].reshape(3, 3), b + d[9:]
+            out[name] = np.linalg.solve(Kp, (raw[name] + noise - bp).T).T
+        return _heading(out["accel"], out["mag"])
+
+    h0 = heading_with(np.zeros(30))
+    scale = max(float(np.abs(base["accel"][0]).max()), float(np.abs(base["mag"][0]).max()))
+    step = 1e-6 * scale
+    J = np.empty((_HEADINGS, 30))
+    for p in range(30):
+        delta = np.zeros(30)
+        delta[p] = step
+        J[:, p] = np.angle(np.exp(1j * (heading_with(delta) - h0))) / step
+    C = np.zeros((30, 30))
+    C[:12, :12] = _param_block(cal.covariance, "accel")
+    C[12:24, 12:24] = _param_block(cal.covariance, "mag")
+    if cal.covariance is not None:  # the two sensors' parameters are correlated through the poses
+        names = [f"accel.gain[{j},{k}]" for j in range(3) for k in range(3)]
+        names += [f"accel.bias[{j}]" for j in range(3)]
+        other = [n.replace("accel", "mag") for n in names]
+        if all(n in cal.covariance.names for n in names + other):
+            ia = [cal.covariance.index(n) for n in names]
+            im = [cal.covariance.index(n) for n in other]
+            C[:12, 12:24] = cal.covariance.matrix[np.ix_(ia, im)]
+            C[12:24, :12] = C[:12, 12:24].T
+    C[24:27, 24:27] = np.eye(3) * cal.sensor("accel").pose_noise_std ** 2
+    C[27:30, 27:30] = np.eye(3) * cal.sensor("mag").pose_noise_std ** 2
+    var = np.einsum("hp,pq,hq->h", J, C, J)
+    return float(np.degrees(np.sqrt(max(var.mean(), 0.0))))
+
+
+def predict_accuracy(cal: Calibration) -> Accuracy:
+    """The predicted 1σ (RMS) errors of :class:`~fieldcal.calibration.Accuracy` for ``cal``."""
+    accel_norm = tilt = mag_norm = None
+    if cal.accel is not None and cal.gravity is not None:
+        accel_norm, tilt = _norm_and_direction(cal, "accel")
+    if cal.mag is not None and cal.magnetic is not None:
+        mag_norm, _ = _norm_and_direction(cal, "mag")
+    return Accuracy(
+        tilt_deg=tilt,
+        heading_deg=_heading_error(cal),
+        accel_norm_rel=accel_norm,
+        mag_norm_rel=mag_norm,
+    )

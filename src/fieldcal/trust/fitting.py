@@ -1,0 +1,279 @@
+"""The shared path every method's fit goes through: noise model, robust refit, error bars,
+certificate, verdict and accuracy.
+
+1. The method fits the poses (its own algorithm, its own weights).
+2. The pose-level noise is estimated (:mod:`.pose_noise`) at the maximum-likelihood point: the
+   method's own result when it weighs poses by their covariance (``mle``), otherwise a
+   maximum-likelihood polish started from it, so the data are judged the same way whichever
+   method ran. One sample per pose is the special case without Eq. 7.
+3. Robust (default): every pose and sensor is tested (:mod:`.outliers`); the worst flagged pose
+   is dropped and everything refitted, until none is flagged or dropping more would leave too
+   few poses.
+4. The method's estimate is evaluated under the final noise model: Cramér-Rao covariance
+   (widened for the estimated noise), the χ² certificate, the pose table; a non-ML method's
+   distance from the ML optimum is measured.
+5. The verdict (:mod:`.verdict`) and the predicted accuracy (:mod:`.accuracy`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import chdtrc
+
+from ..calibration import Calibration, ParameterCovariance, RejectedPose
+from ..methods import METHODS, Method
+from ..stats.noise import wishart_std
+from ..stats.poses import PoseStats
+from .accuracy import predict_accuracy
+from .certificate import certify, pose_table
+from .evaluate import Evaluation, evaluate
+from .outliers import REASONS, pose_tests
+from .pose_noise import (
+    PoseNoise,
+    estimate,
+    initial_variances,
+    noise_reported,
+    widening,
+)
+from .verdict import Findings, judge
+
+__all__ = ["fit_trusted"]
+
+Array = NDArray[np.float64]
+
+
+def _subset(samples: Any, keep: NDArray[np.int64]) -> Any:
+    if samples is None or (isinstance(samples, np.ndarray) and samples.ndim == 2):
+        return samples
+    return [samples[int(i)] for i in keep]
+
+
+def _plain(stats: PoseStats) -> PoseStats:
+    """Statistics for a method that weighs with Eq. 7 only: no pose-level variance; with one
+    sample per pose the estimated variance stands in for Eq. 7."""
+    return stats.replace(
+        **{
+            s: dataclasses.replace(
+                stats.sensor(s), cov=noise_reported(stats.sensor(s)), pose_var=0.0
+            )
+            for s in stats.sensors
+        }
+    )
+
+
+class _Runner:
+    """Runs the chosen method, and the ML polish for methods that do not weigh poses."""
+
+    def __init__(
+        self,
+        method: Method,
+        raw: dict[str, Any],
+        body_frame: str,
+        options: dict[str, Any],
+    ) -> None:
+        self.method = method
+        self.fit = method.load()
+        self.raw = raw
+        self.body_frame = body_frame
+        self.options = options
+        self.mle = METHODS["mle"]
+
+    def method_fit(self, stats: PoseStats, keep: NDArray[np.int64], previous: Calibration | None) -> Calibration:
+        kwargs = dict(self.options)
+        if previous is not None and self.method.warm_start and "initial" not in kwargs:
+            kwargs["initial"] = previous
+        given = stats if self.method.pose_weights else _plain(stats)
+        return self.fit(
+            given,
+            raw_accel=_subset(self.raw["accel"], keep),
+            raw_mag=_subset(self.raw["mag"], keep),
+            body_frame=self.body_frame,
+            **kwargs,
+        )
+
+    def polish_possible(self, stats: PoseStats) -> bool:
+        return stats.n_poses >= self.mle.min_poses_for(len(stats.sensors))
+
+    def ml_refit(self, stats: PoseStats, previous: Calibration) -> Calibration:
+        """The ML fit from ``previous`` under ``stats``' noise model (the trust path's yardstick)."""
+        fit = self.fit if self.method.pose_weights else self.mle.load()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the method's own fit already warned
+            kwargs = dict(self.options) if self.method.pose_weights else {}
+            kwargs["initial"] = previous
+            return fit(stats, body_frame=self.body_frame, **kwargs)
+
+
+def _noise_round(
+    runner: _Runner,
+    cal: Calibration,
+    stats: PoseStats,
+    keep: NDArray[np.int64],
+    free: tuple[str, ...],
+) -> tuple[Calibration, Calibration, PoseStats, Evaluation, PoseNoise]:
+    """The pose-level noise at the ML point, for a method result ``cal`` fitted to ``stats``.
+
+    Returns the method's result (refitted when its weights depend on the estimated noise), the
+    ML point, the statistics with the estimated variances, the ML evaluation and the noise."""
+    one_sample = any(stats.sensor(s).cov is None for s in stats.sensors)
+    if runner.method.pose_weights or not runner.polish_possible(stats):
+        if runner.method.pose_weights or one_sample:
+
+            def refit(current: PoseStats, previous: Calibration) -> Calibration:
+                return runner.method_fit(current, keep, previous)
+
+        else:
+
+            def refit(current: PoseStats, previous: Calibration) -> Calibration:
+                return previous  # its weights do not change: nothing to refit
+
+        fitted, current, ev, noise = estimate(refit, cal, stats, runner.body_frame, free)
+        return fitted, fitted, current, ev, noise
+    ml = runner.ml_refit(stats, cal)
+    ml, current, ev, noise = estimate(runner.ml_refit, ml, stats, runner.body_frame, free)
+    if one_sample:  # the method's weights stood on a guess of the noise: refit with the estimate
+        cal = runner.method_fit(current, keep, cal)
+    return cal, ml, current, ev, noise
+
+
+def fit_trusted(
+    method: Method,
+    stats: PoseStats,
+    *,
+    raw_accel: Any,
+    raw_mag: Any,
+    body_frame: str,
+    options: dict[str, Any],
+    sources: dict[str, str],
+    pose_noise: dict[str, float | None],
+    robust: bool,
+    alpha: float,
+    mag_mirrored: bool = False,
+    on_progress: Callable[[str], None] | None = None,
+) -> Calibration:
+    """Fit with ``method`` and attach the noise model, error bars, certificate, rejected poses,
+    verdict and accuracy (see the module docstring). ``stats`` must hold all the caller's poses;
+    ``cal.rejected`` and ``cal.poses`` use their numbering."""
+    runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options)
+    n_total = stats.n_poses
+    keep = np.arange(n_total)
+    fixed = {s: pose_noise.get(s) for s in stats.sensors}
+    free = tuple(s for s in stats.sensors if fixed[s] is None)
+    start = initial_variances(stats, fixed)
+    cal = runner.method_fit(start, keep, None)
+    cal, ml, current, ev, noise = _noise_round(runner, cal, start, keep, free)
+    rejected: list[RejectedPose] = []
+    left = 0
+    min_keep = max(method.min_poses_for(len(stats.sensors)), n_total - n_total // 2)
+    while robust:
+        tests = pose_tests(ev, current, noise)
+        flagged = tests.flagged(alpha)
+        if not flagged.any():
+            break
+        p_min = tests.p_value.min(axis=1)
+        worst = int(np.argmin(np.where(flagged, p_min, np.inf)))
+        if len(keep) - 1 < min_keep:
+            left = int(flagged.sum())
+            break
+        kind = tests.kind(worst, alpha)
+        column = int(np.argmin(tests.p_value[worst]))
+        rejected.append(
+            RejectedPose(
+                index=int(keep[worst]),
+                sensor=kind,
+                statistic=float(tests.statistic[worst, column]),
+                p_value=float(tests.p_value[worst, column]),
+                reason=REASONS[kind],
+            )
+        )
+        if on_progress is not None:
+            on_progress(f"dropped pose {int(keep[worst])} ({kind})")
+        local = np.delete(np.arange(len(keep)), worst)
+        keep = keep[local]
+        sub = current.subset(local)  # the current noise model as the start
+        previous = dataclasses.replace(cal, rotations=cal.rotations[local])
+        cal = runner.method_fit(sub, keep, previous)
+        cal, ml, current, ev, noise = _noise_round(runner, cal, sub, keep, free)
+    result, found = _finish(cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total)
+    # the handedness is a choice of gauge: make it before the verdict reads the dip
+    result = result.with_mag_handedness(mag_mirrored)
+    verdict = judge(result, current, found)
+    return dataclasses.replace(result, verdict=verdict, accuracy=predict_accuracy(result))
+
+
+def _finish(
+    cal: Calibration,
+    ml: Calibration,
+    stats: PoseStats,
+    ev_ml: Evaluation,
+    noise: PoseNoise,
+    runner: _Runner,
+    keep: NDArray[np.int64],
+    rejected: Sequence[RejectedPose],
+    left: int,
+    sources: dict[str, str],
+    n_total: int,
+) -> tuple[Calibration, Findings]:
+    ev = ev_ml if cal is ml else evaluate(cal, stats, runner.body_frame)
+    factor = widening(ev_ml, noise, stats)
+    unc = ev.uncertainty
+    covariance = ParameterCovariance(unc.covariance.names, unc.covariance.matrix * factor)
+    estimated = [s for s in noise.estimated if noise.variance[s] > 0]
+    status = "pose noise estimated" if estimated else "ok"
+    diagnostics = certify(ev, status)
+    sensors = {}
+    for s in stats.sensors:
+        st = stats.sensor(s)
+        one_sample = st.cov is None
+        source = "residuals" if one_sample else sources.get(s, "scatter")
+        noise_std = None
+        if source == "scatter":
+            noise_std = wishart_std(st.cov, st.dof)
+        elif source == "residuals":
+            nu = max(ev_ml.dof_share()[s], 1.0)
+            noise_std = np.eye(3) * st.pose_var * np.sqrt(2.0 / nu)
+        sensors[s] = dataclasses.replace(
+            cal.sensor(s),
+            noise_cov=noise_reported(st),
+            noise_cov_std=noise_std if noise_std is not None else np.zeros((3, 3)),
+            noise_source=source,
+            pose_noise_std=0.0 if one_sample else float(np.sqrt(st.pose_var)),
+            pose_noise_std_se=None if one_sample else noise.std_se.get(s),
+        )
+    excess = None
+    if cal is not ml and runner.polish_possible(stats):
+        diff = max(diagnostics.statistic - float(ev_ml.pose_cost.sum()), 0.0)
+        G = ev.problem.n_global
+        p = float(chdtrc(G, diff))
+        if p < 0.01:
+            excess = {"method": cal.method, "excess": diff, "dof": G, "p": p}
+    options = {
+        **cal.options,
+        "pose_noise": {
+            s: ("estimated" if s in noise.estimated else "given") for s in stats.sensors
+        },
+        "noise_sources": {s: sensors[s].noise_source for s in stats.sensors},
+    }
+    result = dataclasses.replace(
+        cal,
+        covariance=covariance,
+        diagnostics=diagnostics,
+        poses=tuple(pose_table(ev, stats, keep)),
+        rejected=tuple(rejected),
+        options=options,
+        **sensors,
+    )
+    found = Findings(
+        n_total=n_total,
+        rejected=[(r.index, r.sensor) for r in rejected],
+        unflagged_left=left,
+        condition=unc.condition,
+        excess=excess,
+    )
+    return result, found

@@ -1,0 +1,219 @@
+"""Pose-level noise ``Q_s = q_s² I``, estimated together with the calibration.
+
+A pose mean's error is not only white noise averaged over ``Δ`` samples (Eq. 7): sensor
+non-linearity, a field that changes across the desk, drift and flexing add an error per pose
+that does not average away. Its covariance is ``C_si = Σ_s/Δ_si + q_s² I``.
+
+Estimator (REML-type moment equation, ``docs/methods/pose-noise.md``). For each sensor ``q_s²``
+solves
+
+    J_s(q²) = ν_s(q²),     J_s = Σ_i r_siᵀ C_si⁻¹ r_si,     ν_s = 3N − tr(H_ss)
+
+— the whitened residual sum of squares equals its expectation, the residual degrees of freedom
+(the hat matrix ``H`` accounts for the parameters fitted, as REML does). ``J_s`` falls with
+``q²``; when ``J_s(0) ≤ ν_s`` the data show no pose-level noise and ``q_s = 0``. The root is
+found with the parameters held, then the calibration is refitted with the new weights (methods
+that weigh poses by ``C_si``) and ``ν_s`` re-evaluated, until ``q_s`` settles.
+
+One sample per pose (no Eq. 7) is the special case ``Σ_s = 0``: then ``q_s² = J_s(1)/ν_s``
+is the noise from the residuals, reported as the sample noise.
+
+Standard error: ``J_s`` is close to χ²(ν_s), so ``se(q²) = sqrt(2 ν_s) / |dJ_s/dq²|`` and
+``se(q) = se(q²) / 2q``; at ``q = 0`` the reported value is ``sqrt(se(q²))``, the size of ``q``
+the data could hide.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..calibration import Calibration
+from ..stats.poses import PoseStats, SensorStats
+from .evaluate import Evaluation, evaluate
+
+__all__ = ["PoseNoise", "solve_pose_variance", "estimate"]
+
+Array = NDArray[np.float64]
+
+#: Relative change of every q below which the fixed point has settled.
+RTOL = 1e-3
+MAX_ROUNDS = 30
+
+
+@dataclass(frozen=True)
+class PoseNoise:
+    """Each sensor's pose-level variance, its standard error and whether it was estimated."""
+
+    variance: dict[str, float]
+    std_se: dict[str, float | None]
+    estimated: tuple[str, ...]
+    rounds: int
+
+
+def whitened_terms(sensor: SensorStats, raw: Array) -> tuple[Array, Array]:
+    """``(Vᵀ r_i)²`` and ``λ_j / Δ_i`` per pose and axis, with ``Σ = V diag(λ) Vᵀ``, so that
+    ``r_iᵀ C_i⁻¹ r_i = Σ_j proj_ij / (lam_ij + q²)`` for any ``q²``."""
+    if sensor.cov is None:
+        return raw * raw, np.zeros_like(raw)
+    lam, V = np.linalg.eigh(sensor.cov)
+    proj = (raw @ V) ** 2
+    return proj, np.maximum(lam, 0.0)[None, :] / sensor.counts[:, None]
+
+
+def solve_pose_variance(proj: Array, lam: Array, target: float) -> float:
+    """The ``q² ≥ 0`` with ``Σ proj / (lam + q²) = target`` (0 when the sum at 0 is below it).
+
+    The sum falls monotonically in ``q²``: bracket the root on a log scale, then bisect.
+    """
+    if target <= 0:
+        return 0.0
+
+    def J(q2: float) -> float:
+        return float(np.sum(proj / (lam + q2)))
+
+    positive = lam > 0
+    if positive.all() and J(0.0) <= target:
+        return 0.0
+    hi = max(float(np.sum(proj)) / target, 1e-300)  # J(hi) <= target since lam >= 0
+    lo = hi
+    while J(lo) <= target and lo > 1e-300:
+        lo *= 1e-3
+    if J(lo) <= target:
+        return 0.0
+    for _ in range(200):
+        mid = np.sqrt(lo * hi) if lo > 0 else 0.5 * hi
+        if J(mid) > target:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-10 * hi:
+            break
+    return float(np.sqrt(lo * hi))
+
+
+def _std_error(proj: Array, lam: Array, q2: float, nu: float) -> float:
+    slope = float(np.sum(proj / (lam + q2) ** 2))
+    if slope <= 0 or nu <= 0:
+        return float("inf")
+    se_var = np.sqrt(2.0 * nu) / slope
+    if q2 > 0:
+        return float(se_var / (2.0 * np.sqrt(q2)))
+    return float(np.sqrt(se_var))
+
+
+def _initial_variance(means: Array) -> float:
+    # one sample per pose: only the ratio between the sensors matters for the first fit; 1e-3
+    # of the spread is a typical MEMS noise-to-range ratio and the fixed point corrects it
+    spread = float(np.sqrt(np.mean(np.sum((means - means.mean(axis=0)) ** 2, axis=1))))
+    return (1e-3 * max(spread, 1e-300)) ** 2
+
+
+def with_variances(stats: PoseStats, variance: dict[str, float]) -> PoseStats:
+    """``stats`` with these pose-level variances."""
+    return stats.replace(
+        **{s: stats.sensor(s).with_pose_var(v) for s, v in variance.items() if s in stats.sensors}
+    )
+
+
+def initial_variances(stats: PoseStats, fixed: dict[str, float | None]) -> PoseStats:
+    """The statistics for the first fit: the user's pose-level variances where given, 0 where
+    estimated (one sample per pose: a first guess that :func:`estimate` corrects)."""
+    variance = {}
+    for s in stats.sensors:
+        sensor = stats.sensor(s)
+        given = fixed.get(s)
+        if given is not None:
+            variance[s] = given
+        elif sensor.cov is None:
+            variance[s] = _initial_variance(sensor.means)
+        else:
+            variance[s] = 0.0
+        if sensor.cov is None and not variance[s] > 0:
+            raise ValueError(
+                f"{s}: one sample per pose gives no within-pose scatter (Eq. 7), so its noise "
+                "must come from the residuals: use pose_noise='auto' or give noise=..."
+            )
+    return with_variances(stats, variance)
+
+
+def estimate(
+    refit: Callable[[PoseStats, Calibration], Calibration],
+    cal: Calibration,
+    stats: PoseStats,
+    body_frame: str,
+    free: tuple[str, ...],
+) -> tuple[Calibration, PoseStats, Evaluation, PoseNoise]:
+    """Estimate the pose-level variance of the sensors in ``free``.
+
+    ``cal`` was fitted to ``stats`` (:func:`initial_variances`); ``refit(stats, previous)``
+    fits again with other weights. Returns the final calibration, the statistics with the
+    variances set, the model evaluated there, and the estimates.
+    """
+    sensors = stats.sensors
+    variance = {s: stats.sensor(s).pose_var for s in sensors}
+    current = stats
+    ev = evaluate(cal, current, body_frame)
+    rounds = 0
+    while free and rounds < MAX_ROUNDS:
+        rounds += 1
+        shares = ev.dof_share()
+        new = dict(variance)
+        for s in free:
+            proj, lam = whitened_terms(current.sensor(s), ev.raw[s])
+            new[s] = solve_pose_variance(proj, lam, shares[s])
+        if new == variance:
+            break
+        settled = all(
+            abs(np.sqrt(new[s]) - np.sqrt(variance[s])) <= RTOL * np.sqrt(new[s]) for s in free
+        )
+        variance = new
+        current = with_variances(stats, variance)
+        cal = refit(current, cal)
+        ev = evaluate(cal, current, body_frame)
+        if settled:
+            break
+    shares = ev.dof_share()
+    std_se: dict[str, float | None] = {s: None for s in sensors}
+    for s in free:
+        proj, lam = whitened_terms(current.sensor(s), ev.raw[s])
+        std_se[s] = _std_error(proj, lam, variance[s], shares[s])
+    return cal, current, ev, PoseNoise(variance, std_se, free, rounds)
+
+
+def widening(ev: Evaluation, noise: PoseNoise, stats: PoseStats) -> float:
+    """Factor on every variance for the pose-level noise having been estimated.
+
+    With a variance estimated from ``ν`` degrees of freedom a standardised error follows
+    Student's t, of variance ``ν/(ν − 2)``; only the estimated part of each pose mean's
+    variance carries that uncertainty, so the factor is weighted by its share ``w``.
+    """
+    shares = ev.dof_share()
+    factor = 1.0
+    for s in noise.estimated:
+        q2 = noise.variance[s]
+        if not q2 > 0:
+            continue
+        sensor = stats.sensor(s)
+        total = np.trace(sensor.mean_covariances(), axis1=1, axis2=2).mean() / 3.0
+        w = min(q2 / total, 1.0) if total > 0 else 1.0
+        nu = shares[s]
+        if nu > 2:
+            factor = max(factor, 1.0 + w * 2.0 / (nu - 2.0))
+    return factor
+
+
+def noise_reported(sensor: SensorStats) -> Array:
+    """The per-sample noise to report: Eq. 7's, or (one sample per pose) the pose variance."""
+    if sensor.cov is not None:
+        return np.asarray(sensor.cov)
+    return np.eye(3) * sensor.pose_var
+
+
+def replace_sensor_noise(cal: Calibration, name: str, **changes: object) -> Calibration:
+    sensor = cal.sensor(name)
+    return dataclasses.replace(cal, **{name: dataclasses.replace(sensor, **changes)})

@@ -1,0 +1,186 @@
+"""One verdict from fixed rules: ``pass``, ``warn`` or ``fail``, with one line per reason.
+
+A rule of level ``note`` adds its line without raising the level (a fact the user should
+know that the data cannot settle, such as the sign of the dip).
+
+Every rule is a code, a level and a fixed message (filled with numbers), listed in
+:data:`RULES` and in ``docs/trust.md``; nothing here builds prose that is parsed later.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..calibration import Calibration, Verdict
+from ..stats.poses import PoseStats
+
+__all__ = ["RULES", "Findings", "judge"]
+
+Array = NDArray[np.float64]
+
+#: code -> (level, message template). Each message names the cause and the fix.
+RULES: dict[str, tuple[str, str]] = {
+    "not_converged": (
+        "fail",
+        "the optimiser did not converge ({detail}); record more orientations or raise the "
+        "iteration limit",
+    ),
+    "degenerate": (
+        "fail",
+        "the poses barely determine the calibration (condition number {condition:.2g}); add "
+        "poses with the body's {axis} axis pointing up and down",
+    ),
+    "too_many_rejected": (
+        "fail",
+        "{rejected} of {total} poses had to be dropped (more than a quarter); record the session "
+        "again, away from iron and with the device held still",
+    ),
+    "unidentifiable": (
+        "fail",
+        "{flagged} further pose(s) disagree with the model but dropping them would leave too "
+        "few to calibrate; record the session again, away from iron, device held still",
+    ),
+    "same_sensor": (
+        "fail",
+        "the magnetometer readings are an affine copy of the accelerometer's (relative residual "
+        "{residual:.2g}); check that the magnetometer columns are not the accelerometer's",
+    ),
+    "not_rigid": (
+        "fail",
+        "the {sensor}'s pose means scatter about the best fit by {ratio:.1%} of the field beyond "
+        "their noise; no rigid device at rest does that (pose labels mixing orientations, "
+        "wrong columns, or motion): check the pose grouping and the columns",
+    ),
+    "rejected": (
+        "warn",
+        "{count} pose(s) dropped as disturbed ({which}); see `rejected` for each and why",
+    ),
+    "pose_noise": (
+        "warn",
+        "the {sensor}'s pose-to-pose error ({q:.3g} raw) is {ratio:.1f}x its per-sample noise: "
+        "poses not really still, or a magnetically busy site; rest the device on a firm "
+        "support away from iron",
+    ),
+    "coverage": (
+        "warn",
+        "the poses cover the orientations poorly (the body's {axis} axis rarely points up or "
+        "down); add such poses for a better calibration",
+    ),
+    "negative_dip": (
+        "note",
+        "the dip came out negative ({dip:.1f}°): right in the southern magnetic hemisphere; "
+        "otherwise the magnetometer is mirrored (--mag-mirrored) or the accelerometer reports "
+        "gravity instead of specific force",
+    ),
+    "not_ml": (
+        "warn",
+        "the {method} estimate's likelihood is far below the optimum (J exceeds the maximum "
+        "likelihood fit's by {excess:.3g}, χ²({dof}) p = {p:.2g}); method='mle' would be more "
+        "accurate",
+    ),
+    "implausible": (
+        "warn",
+        "the fit is implausible under the stated noise (J = {cost:.4g} for χ²({dof}), p = "
+        "{p:.2g}); let fieldcal estimate the pose-level noise (pose_noise='auto')",
+    ),
+}
+
+#: Condition number of the Jacobi-scaled reduced system above which the poses are degenerate.
+CONDITION_LIMIT = 1e10
+#: A pose-level error this many times the per-sample noise draws a warning.
+POSE_NOISE_RATIO = 3.0
+#: Pose-level noise, relative to the field, that no rigid device at rest shows.
+NOT_RIGID = 0.05
+#: Smallest eigenvalue of the mean of ``u uᵀ`` over gravity directions for good coverage
+#: (1/3 for directions spread evenly over the sphere).
+COVERAGE = 0.04
+
+
+@dataclass
+class Findings:
+    """What the trust path measured, for the rules."""
+
+    n_total: int
+    rejected: list[tuple[int, str]]
+    unflagged_left: int
+    condition: float
+    excess: dict[str, object] | None
+
+
+def _axis(directions: Array) -> str:
+    w, V = np.linalg.eigh(directions.T @ directions / max(len(directions), 1))
+    return "xyz"[int(np.argmax(np.abs(V[:, 0])))]
+
+
+def _unit(x: Array) -> Array:
+    return np.asarray(x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300))
+
+
+def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
+    """Apply :data:`RULES` to a finished calibration; the worst level wins."""
+    reasons: list[tuple[str, str]] = []
+
+    def add(code: str, **values: object) -> None:
+        level, template = RULES[code]
+        reasons.append((level, template.format(**values)))
+
+    if not cal.converged:
+        add("not_converged", detail=cal.message or f"{cal.iterations} iterations")
+    sensors = stats.sensors
+    first = sensors[0]
+    body = {s: _unit(stats.sensor(s).means - cal.sensor(s).bias) for s in sensors}
+    if found.condition > CONDITION_LIMIT:
+        add("degenerate", condition=found.condition, axis=_axis(body[first]))
+    if 4 * len(found.rejected) > found.n_total:
+        add("too_many_rejected", rejected=len(found.rejected), total=found.n_total)
+    if found.unflagged_left:
+        add("unidentifiable", flagged=found.unflagged_left)
+    if "accel" in sensors and "mag" in sensors and stats.n_poses >= 5:
+        X = np.column_stack([stats.sensor("accel").means, np.ones(stats.n_poses)])
+        Y = stats.sensor("mag").means
+        coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
+        spread = np.linalg.norm(Y - Y.mean(axis=0))
+        residual = float(np.linalg.norm(Y - X @ coef) / spread) if spread > 0 else 0.0
+        if residual < 0.02:
+            add("same_sensor", residual=residual)
+    for s in sensors:
+        sc = cal.sensor(s)
+        radius = float(np.linalg.norm(sc.gain @ cal.reference(s)))
+        if not radius > 0:
+            continue
+        if sc.pose_noise_std > NOT_RIGID * radius:
+            add("not_rigid", sensor=s, ratio=sc.pose_noise_std / radius)
+            continue
+        cov = stats.sensor(s).cov
+        sample = float(np.sqrt(np.trace(cov) / 3.0)) if cov is not None else 0.0
+        if sample > 0 and sc.pose_noise_std > POSE_NOISE_RATIO * sample:
+            add("pose_noise", sensor=s, q=sc.pose_noise_std, ratio=sc.pose_noise_std / sample)
+    if found.rejected:
+        which = ", ".join(f"pose {i} ({kind})" for i, kind in found.rejected[:6])
+        more = "" if len(found.rejected) <= 6 else f" and {len(found.rejected) - 6} more"
+        add("rejected", count=len(found.rejected), which=which + more)
+    directions = body[first]
+    lowest = float(np.linalg.eigvalsh(directions.T @ directions / len(directions))[0])
+    if lowest < COVERAGE:
+        add("coverage", axis=_axis(directions))
+    dip = cal.dip_deg
+    if dip is not None and dip < 0:
+        add("negative_dip", dip=dip)
+    if found.excess is not None:
+        add("not_ml", **found.excess)
+    diag = cal.diagnostics
+    if (
+        diag is not None
+        and diag.status == "ok"
+        and diag.dof > 0
+        and diag.p_value < 1e-4
+        and not found.rejected
+    ):
+        add("implausible", cost=diag.statistic, dof=diag.dof, p=diag.p_value)
+    order = {"fail": 2, "warn": 1, "note": 0}
+    level = max((lv for lv, _ in reasons if lv != "note"), key=lambda lv: order[lv], default="pass")
+    ranked = sorted(reasons, key=lambda r: -order[r[0]])
+    return Verdict(level, tuple(text for _, text in ranked))
