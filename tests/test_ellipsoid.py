@@ -155,7 +155,7 @@ def test_poor_coverage_hyperboloid_nan_in_faithful_li_griffiths_when_hardened():
     assert np.sqrt(np.mean(distance**2)) < 2 * sigma
     with pytest.warns(method.NotAnEllipsoidWarning):
         cal = fieldcal.calibrate(samples, None, method="ellipsoid")
-    assert "li-griffiths" in cal.diagnostics.status
+    assert "li-griffiths" in cal.message
     np.testing.assert_allclose(cal.accel.bias, hardened.center)
 
 
@@ -276,14 +276,16 @@ def test_calibration_fields_are_filled(session):
     stats = fieldcal.summarize(session.accel, session.mag)
     np.testing.assert_allclose(cal.accel.noise_cov, stats.accel.cov)
     assert np.isfinite(cal.cost) and cal.cost == pytest.approx(cal.diagnostics.statistic)
-    assert len(cal.poses) == 15 and "alignment" in cal.diagnostics.status
-    assert cal.options == {
+    assert len(cal.poses) == 15 and "alignment" in cal.message
+    expected = {
         "faithful": False,
         "inclination_deg": None,
         "fit_on": "samples",
         "body_frame": "accel",
         "input": "poses",
+        "mag_mirrored": False,
     }
+    assert {k: cal.options[k] for k in expected} == expected
     again = fieldcal.Calibration.from_json(cal.to_json())
     np.testing.assert_array_equal(again.mag.gain, cal.mag.gain)
     json.loads(cal.to_json())
@@ -330,7 +332,7 @@ def test_one_sensor_alone(session):
     )
     mag = fieldcal.calibrate(None, session.mag, method="ellipsoid")
     assert mag.accel is None and mag.gravity is None and mag.mag is not None
-    assert "dip not observable" in mag.diagnostics.status
+    assert "dip not observable" in mag.message and mag.dip_deg is None
 
 
 def test_body_frame_mag_makes_the_magnetometer_gain_symmetric(session):
@@ -350,7 +352,7 @@ def test_faithful_calibrate_agrees_with_hardened_on_good_data(session):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"gamma": 1e-4}, r"unknown option\(s\) \['gamma'\] for method='ellipsoid'"),
+        ({"gamma": 1e-4}, r"unknown option\(s\) 'gamma' for method 'ellipsoid'"),
         ({"fit_on": "medians"}, "fit_on must be"),
         ({"inclination_deg": 120.0}, "inclination_deg must be a number in"),
         ({"faithful": "yes"}, "faithful must be True or False"),
@@ -363,7 +365,7 @@ def test_bad_options_are_one_line_errors(session, kwargs, message):
 
 
 def test_bad_inputs_say_what_is_needed(session):
-    with pytest.raises(ValueError, match="needs at least 9 distinct poses"):
+    with pytest.raises(ValueError, match="needs at least 9"):
         fieldcal.calibrate(session.accel[:8], session.mag[:8], method="ellipsoid")
     rng = np.random.default_rng(6)
     with pytest.raises(ValueError, match=r"at least 10 are needed .*9 free parameters"):

@@ -28,7 +28,10 @@ def session():
 
 @pytest.fixture(scope="module")
 def cal(session):
-    return fieldcal.calibrate(session.accel, session.mag, method="greedy")
+    # the seed paper's model: Eq. 7 noise only, every pose kept
+    return fieldcal.calibrate(
+        session.accel, session.mag, method="greedy", pose_noise="none", robust=False
+    )
 
 
 def _whitened_lstsq(X, y, cov, counts):
@@ -92,7 +95,11 @@ def test_reported_cost_is_eq8(session, cal):
 def test_pose_order_does_not_matter(session, cal):
     perm = np.random.default_rng(7).permutation(15)
     other = fieldcal.calibrate(
-        [session.accel[i] for i in perm], [session.mag[i] for i in perm], method="greedy"
+        [session.accel[i] for i in perm],
+        [session.mag[i] for i in perm],
+        method="greedy",
+        pose_noise="none",
+        robust=False,
     )
     # Equal to the optimisation's own tolerance (γ = 1e-4 on J): round-off in the pose sums
     # moves the stopping point by ~1e-7, far below the statistical error (~1e-3).
@@ -235,7 +242,7 @@ def test_bad_input_raises(session):
     with pytest.raises(ValueError, match="unknown option"):
         fieldcal.calibrate(session.accel, session.mag, method="greedy", step=1.0)
     # One sample per pose and no noise given: the method itself refuses (fieldcal.calibrate
-    # wraps it in the residual-noise fixed point of fieldcal.noise instead).
+    # wraps it in the pose-noise fixed point of fieldcal.trust instead).
     one_shot = fieldcal.summarize([a[:1] for a in session.accel], [m[:1] for m in session.mag])
     with pytest.raises(ValueError, match="scatter"):
-        greedy.fit(one_shot, noise_sources={"accel": "residuals", "mag": "residuals"})
+        greedy.fit(one_shot)

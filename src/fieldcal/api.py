@@ -189,7 +189,8 @@ def calibrate(
                         " (6N readings must outnumber the 3N rotation angles plus 22 sensor "
                         "parameters)"
                         if len(stats.sensors) == 2
-                        else " with one sensor"
+                        else " for one sensor (3N readings must outnumber 2N tilt angles plus "
+                        "9 sensor parameters)"
                     )
                 )
             stats, sources = _with_user_noise(stats, noise)

@@ -38,6 +38,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "noise_alpha": (1e-4, 1e-2),
         "pose_distribution": "uniform",
         "mag_axes": None,
+        "pose_noise": (0.0, 0.0),
     },
 }
 # Harder settings than Table 1 (the mle benchmark): each changes one thing, "hard" all at once.
@@ -132,7 +133,10 @@ def simulate(
         ``field_x``, ``field_z`` ranges, ``dip_deg`` (min, max) to draw the field from a dip
         instead, ``bias`` half-range, ``gain_spread`` half-range of δK, ``noise_alpha`` range,
         ``pose_distribution`` ("uniform" or "handheld"), ``mag_axes`` (3x3 signed permutation
-        applied to the magnetometer's axes, e.g. to mirror it).
+        applied to the magnetometer's axes, e.g. to mirror it), ``pose_noise`` (accelerometer,
+        magnetometer): the standard deviation per axis, raw units, of an offset shared by all
+        samples of a pose (the pose-level noise ``Q = q² I``; drawn after everything else, so
+        a seed gives the same session with or without it).
     """
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
@@ -186,11 +190,17 @@ def simulate(
 
     accel = draw(Ka, ba, Sa, gravity)
     mag = draw(Km, bm, Sm, magnetic)
+    q_a, q_m = (float(q) for q in np.broadcast_to(params["pose_noise"], (2,)))
+    for samples, q in ((accel, q_a), (mag, q_m)):
+        if q > 0:
+            offsets = rng.normal(0.0, q, (n, 3))
+            for pose, offset in zip(samples, offsets, strict=True):
+                pose += offset
 
     R, Ka_c, Km_c, g_c, h_c = canonical_gauge(rotations, Ka, Km, gravity, magnetic)
     truth = Calibration(
-        accel=SensorCalibration(gain=Ka_c, bias=ba, noise_cov=Sa),
-        mag=SensorCalibration(gain=Km_c, bias=bm, noise_cov=Sm),
+        accel=SensorCalibration(gain=Ka_c, bias=ba, noise_cov=Sa, pose_noise_std=q_a),
+        mag=SensorCalibration(gain=Km_c, bias=bm, noise_cov=Sm, pose_noise_std=q_m),
         gravity=g_c,
         magnetic=h_c,
         rotations=R,

@@ -49,16 +49,9 @@ def trim_unsteady(stacked: Array, counts: NDArray[np.int64]) -> tuple[Array, NDA
         return stacked, counts, trimmed
     pose_of = np.repeat(np.arange(n), counts)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    # per-pose medians and MADs: sort within poses once (a segment sort via lexsort)
-    medians = np.empty((n, 3))
-    mads = np.empty((n, 3))
-    for axis in range(3):
-        order = np.lexsort((stacked[:, axis], pose_of))
-        sorted_x = stacked[order, axis]
-        medians[:, axis] = _segment_median(sorted_x, starts, counts)
-        dev = np.abs(stacked[:, axis] - medians[pose_of, axis])
-        order = np.lexsort((dev, pose_of))
-        mads[:, axis] = _segment_median(dev[order], starts, counts)
+    medians = _segment_medians(stacked, pose_of, starts, counts)
+    deviations = np.abs(stacked - medians[pose_of])
+    mads = _segment_medians(deviations, pose_of, starts, counts)
     scale = 1.4826 * np.median(mads[eligible], axis=0)
     usable = scale > 0
     if not usable.any():
@@ -76,7 +69,23 @@ def trim_unsteady(stacked: Array, counts: NDArray[np.int64]) -> tuple[Array, NDA
     return stacked[keep], counts - trimmed, trimmed
 
 
-def _segment_median(sorted_values: Array, starts: NDArray[np.int64], counts: NDArray[np.int64]) -> Array:
+def _segment_medians(
+    x: Array, pose_of: NDArray[np.int64], starts: NDArray[np.int64], counts: NDArray[np.int64]
+) -> Array:
+    """Per-pose, per-axis medians of concatenated poses with one sort per axis.
+
+    Sorting ``pose · span + (x − min)`` orders the samples by pose, then by value, so each
+    pose's median sits at fixed positions of the sorted array (rounding of the key is far
+    below any sensor's resolution)."""
     lo = starts + (counts - 1) // 2
     hi = starts + counts // 2
-    return np.asarray(0.5 * (sorted_values[lo] + sorted_values[hi]))
+    out = np.empty((len(counts), x.shape[1]))
+    for axis in range(x.shape[1]):  # three axes, each one vectorised sort
+        column = x[:, axis]
+        low = float(column.min())
+        span = 2.0 * (float(column.max()) - low) + 1.0
+        offset = pose_of * span
+        # the sorted keys keep the poses in order, so position k still belongs to pose_of[k]
+        ranked = np.sort(offset + (column - low)) - offset + low
+        out[:, axis] = 0.5 * (ranked[lo] + ranked[hi])
+    return out

@@ -26,8 +26,8 @@ __all__ = ["predict_accuracy"]
 
 Array = NDArray[np.float64]
 
-_ORIENTATIONS = 256
-_HEADINGS = 72
+_ORIENTATIONS = 128
+_HEADINGS = 36
 
 
 def _sphere(n: int) -> Array:
@@ -98,24 +98,22 @@ def _heading_error(cal: Calibration) -> float | None:
     # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6)
     base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
 
-    def heading_with(delta: Array) -> Array:
+    def headings(deltas: Array) -> Array:
+        """Headings (P, H) for P perturbations (P, 30) of the parameters and noise."""
         out = {}
         for k, name in enumerate(("accel", "mag")):
             K, b = base[name]
-            d = delta[12 * k : 12 * k + 12]
-            noise = delta[24 + 3 * k : 27 + 3 * k]
-            Kp, bp = K + d[:9].reshape(3, 3), b + d[9:]
-            out[name] = np.linalg.solve(Kp, (raw[name] + noise - bp).T).T
+            d = deltas[:, 12 * k : 12 * k + 12]
+            noise = deltas[:, 24 + 3 * k : 27 + 3 * k]
+            Kp = K + d[:, :9].reshape(-1, 3, 3)
+            rhs = raw[name][None] + (noise - b - d[:, 9:])[:, None, :]  # (P, H, 3)
+            out[name] = np.linalg.solve(Kp[:, None], rhs[..., None])[..., 0]
         return _heading(out["accel"], out["mag"])
 
-    h0 = heading_with(np.zeros(30))
     scale = max(float(np.abs(base["accel"][0]).max()), float(np.abs(base["mag"][0]).max()))
     step = 1e-6 * scale
-    J = np.empty((_HEADINGS, 30))
-    for p in range(30):
-        delta = np.zeros(30)
-        delta[p] = step
-        J[:, p] = np.angle(np.exp(1j * (heading_with(delta) - h0))) / step
+    both = headings(np.vstack([np.zeros(30), np.eye(30) * step]))
+    J = (np.angle(np.exp(1j * (both[1:] - both[0]))) / step).T  # (H, 30)
     C = np.zeros((30, 30))
     C[:12, :12] = _param_block(cal.covariance, "accel")
     C[12:24, 12:24] = _param_block(cal.covariance, "mag")

@@ -163,10 +163,16 @@ def fit_trusted(
     runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options)
     n_total = stats.n_poses
     keep = np.arange(n_total)
-    fixed = {s: pose_noise.get(s) for s in stats.sensors}
+    # one sample per pose: the pose-level variance is the only noise there is, so it is
+    # estimated even under pose_noise="none" (the residual-noise special case)
+    fixed = {
+        s: None if stats.sensor(s).cov is None and not pose_noise.get(s) else pose_noise.get(s)
+        for s in stats.sensors
+    }
     free = tuple(s for s in stats.sensors if fixed[s] is None)
     start = initial_variances(stats, fixed)
     cal = runner.method_fit(start, keep, None)
+    first_options = dict(cal.options)  # the cold fit's account (starts tried), for provenance
     cal, ml, current, ev, noise = _noise_round(runner, cal, start, keep, free)
     rejected: list[RejectedPose] = []
     left = 0
@@ -200,7 +206,10 @@ def fit_trusted(
         previous = dataclasses.replace(cal, rotations=cal.rotations[local])
         cal = runner.method_fit(sub, keep, previous)
         cal, ml, current, ev, noise = _noise_round(runner, cal, sub, keep, free)
-    result, found = _finish(cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total)
+    cal = dataclasses.replace(cal, options={**cal.options, **first_options})
+    result, found = _finish(
+        cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total
+    )
     # the handedness is a choice of gauge: make it before the verdict reads the dip
     result = result.with_mag_handedness(mag_mirrored)
     verdict = judge(result, current, found)

@@ -13,18 +13,15 @@ The certificate, the pose-level noise and the error bars are the shared trust pa
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
 from ...stats.poses import PoseStats
-from .lm import Result, levenberg_marquardt, normal_equations
-from .model import Problem, State, build_problem, field, residuals
+from .lm import Result, levenberg_marquardt
+from .model import Problem, State, build_problem, field
 from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
-from .uncertainty import global_covariance
 
 __all__ = ["check_spread", "fit", "state_from_calibration"]
 
@@ -42,8 +39,6 @@ FEW_POSES = 12
 PENCIL_POSES = 12
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
-#: Jacobi-scaled condition number of the reduced system above which the poses are degenerate.
-COND_WARN = 1e10
 
 
 def _axis_name(n: np.ndarray) -> str:
@@ -201,8 +196,10 @@ def fit(
     if len(problem.sensors) == 1:
         starts = tuple(m for m in starts if m[0] == m[1])
     few = n < FEW_POSES and initial is None
-    # a doubtful certificate (or pose-level noise not yet estimated) may mean a local minimum
-    if few or best is None or chdtrc(problem.dof, best.cost) < P_RETRY:
+    # a doubtful certificate may mean a local minimum; a warm start (the trust path refitting
+    # with new weights) stays in the basin it was given
+    doubtful = initial is None and chdtrc(problem.dof, best.cost if best else np.inf) < P_RETRY
+    if few or best is None or doubtful:
         for model in starts:
             if label(model) not in tried:
                 consider(closed_form_start(problem, model), label(model))
@@ -215,10 +212,6 @@ def fit(
             "add poses with each axis pointing up and down"
         )
     state = _canonical(problem, best.state)
-    e = residuals(problem, state)
-    _, _, _, condition = global_covariance(normal_equations(problem, state, e))
-    if condition > COND_WARN:
-        warnings.warn(_degenerate_message(problem, state, condition), stacklevel=3)
     sensor_cals = {
         s: SensorCalibration(
             gain=state.gains[s],
@@ -237,16 +230,4 @@ def fit(
         iterations=total_iter,
         converged=bool(best.converged),
         options={"max_iter": int(max_iter), "tol": float(tol), "starts": tried},
-    )
-
-
-def _degenerate_message(problem: Problem, state: State, cond: float) -> str:
-    """Name the body axis the gravity (or field) directions cover least."""
-    s = problem.sensors[0]
-    u = state.rotations @ field(problem, s, state.dip)
-    _, V = np.linalg.eigh(u.T @ u)
-    ax = _axis_name(V[:, 0])
-    return (
-        f"mle: the poses barely determine the calibration (reduced system condition number "
-        f"{cond:.2g}); add poses with the body's {ax} axis pointing up and down"
     )
