@@ -275,7 +275,7 @@ def test_rotations_about_one_axis_are_refused_naming_the_axis_to_add():
         (truth.mag.gain @ r @ truth.magnetic + truth.mag.bias) + rng.normal(0, 1e-3, (50, 3))
         for r in R
     ]
-    with pytest.raises(ValueError, match=r"one plane.*z axis pointing up and down"):
+    with pytest.raises(ValueError, match=r"one plane.*z axis tilted up and down"):
         fieldcal.calibrate(accel, mag)
 
 

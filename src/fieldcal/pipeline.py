@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from .api import calibrate
 from .methods import get as get_method
+from .stats.poses import check_spread, stats_from_means
 from .errors import InputError
 from .logs.io import Log
 from .calibration import Calibration
@@ -227,18 +228,11 @@ def _check_poses(poses: PoseSet, method: str) -> None:
             )
             + f": hold the device still in {need - n} or more further orientations"
         )
-    for name, samples in sensors:
-        means = np.array([p.mean(axis=0) for p in samples])
-        centred = means - means.mean(axis=0)
-        _, s, vt = np.linalg.svd(centred, full_matrices=False)
-        if s[0] == 0 or s[-1] / s[0] < 0.05:
-            axis = vt[-1] * np.sign(vt[-1][np.argmax(np.abs(vt[-1]))])
-            raise InputError(
-                f"the {n} poses only turn the device about one axis ({name} readings lie in a "
-                f"plane normal to ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f}) in sensor "
-                "axes), so they cannot determine the calibration; add poses with that axis "
-                "tilted up and down"
-            )
+    means = {name: np.array([p.mean(axis=0) for p in samples]) for name, samples in sensors}
+    try:
+        check_spread(stats_from_means(means.get("accel"), means.get("mag")))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
     need = max(need, 8 if len(sensors) == 2 else 9)
     distinct = len(set(poses_orientations(poses)))

@@ -13,6 +13,9 @@ together with the coefficients ``v0..v9`` of the algebraic form (Eq. 8) and ``κ
   the constraint ``4J − I² = 1`` guarantees an ellipsoid, whatever the coverage.
 - :func:`reverse_triangular_factor` — Eq. 13: the lower-triangular ``L`` with ``LᵀL = M``.
 - :func:`quadric_from_coefficients` — Eq. 9-12: centre, ``κ`` and ``M`` from ``v0..v9``.
+- :func:`family_fit` — a weighted algebraic fit within a family (full, axis-aligned, sphere),
+  returned as a symmetric gain and centre (the joint method's closed-form starts).
+- :func:`pencil_fits` — the pencil of ellipsoids through too few points (8-11 poses).
 
 Every fit takes optional per-point ``weights`` (e.g. sample counts when fitting pose means).
 """
@@ -29,9 +32,12 @@ __all__ = [
     "Quadric",
     "algebraic_fit",
     "ellipsoid_radii",
+    "family_fit",
     "li_griffiths_fit",
+    "pencil_fits",
     "quadric_from_coefficients",
     "reverse_triangular_factor",
+    "spd_sqrt",
 ]
 
 Array = NDArray[np.float64]
@@ -289,3 +295,103 @@ def ellipsoid_radii(shape: ArrayLike) -> Array:
     lam = np.linalg.eigvalsh(0.5 * (np.asarray(shape, float) + np.asarray(shape, float).T))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(lam > 0, 1.0 / np.sqrt(np.where(lam > 0, lam, 1.0)), np.nan)
+
+
+# --------------------------------------------------------------------------- families
+#: Indices of the six distinct entries of a symmetric 3x3 in a coefficient vector
+#: ``(a, b, c, d, e, f)`` read as ``[[a, d, e], [d, b, f], [e, f, c]]``.
+SYM_INDEX = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])
+# A weak pull towards a sphere that breaks the tie when the points do not fix all nine
+# parameters (8 poses): the member of the quadric pencil closest to a sphere.
+_SPHERE_PULL = np.zeros((5, 10))
+_SPHERE_PULL[0, [0, 1]] = (1e-4, -1e-4)
+_SPHERE_PULL[1, [1, 2]] = (1e-4, -1e-4)
+_SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
+
+
+def spd_sqrt(M: Array) -> tuple[Array, Array]:
+    """Symmetric square root of a symmetric positive definite matrix, and of its inverse."""
+    w, V = np.linalg.eigh(M)
+    w = np.maximum(w, 1e-300)
+    return (V * np.sqrt(w)) @ V.T, (V / np.sqrt(w)) @ V.T
+
+
+def _family_design(y: Array, weights: Array) -> tuple[Array, Array, float, Array]:
+    """The normalised points and the full quadratic design, rows scaled by ``√w``."""
+    wsum = weights.sum()
+    c0 = weights @ y / wsum
+    d = y - c0
+    s0 = float(np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum))
+    z = d / s0 if s0 > 0 else d
+    return z, c0, s0, np.sqrt(weights / wsum)[:, None]
+
+
+def family_fit(y: ArrayLike, weights: ArrayLike, family: str = "full") -> tuple[Array, Array] | None:
+    """Weighted algebraic ellipsoid of a family: ``"full"`` (9 parameters), ``"axes"``
+    (axis-aligned) or ``"sphere"``.
+
+    Returns the symmetric "gain" ``K`` and centre ``c`` with ``x = K u + c`` for unit vectors
+    ``u`` on the surface, or ``None`` when the fit is not an ellipsoid. The full family adds a
+    weak pull towards a sphere that only matters when the points do not fix it (8 points).
+    """
+    z, c0, s0, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
+    if not s0 > 0:
+        return None
+    x1, x2, x3 = z.T
+    if family == "full":
+        quad = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
+    elif family == "axes":
+        quad = [x1 * x1, x2 * x2, x3 * x3]
+    else:
+        quad = [x1 * x1 + x2 * x2 + x3 * x3]
+    D = np.column_stack([*quad, 2 * z, np.ones(len(z))]) * sw
+    if family == "full":
+        D = np.vstack([D, _SPHERE_PULL])
+    theta = np.linalg.svd(D, full_matrices=False)[2][-1]
+    if family == "full":
+        A = theta[SYM_INDEX]
+    elif family == "axes":
+        A = np.diag(theta[:3])
+    else:
+        A = np.eye(3) * theta[0]
+    beta, gamma = theta[-4:-1], theta[-1]
+    try:
+        zc = -np.linalg.solve(A, beta)
+    except np.linalg.LinAlgError:
+        return None
+    M = A / (zc @ A @ zc - gamma)
+    if not np.all(np.isfinite(M)):
+        return None
+    w, V = np.linalg.eigh(M)
+    if w[0] <= 0:
+        return None
+    return s0 * (V / np.sqrt(w)) @ V.T, c0 + s0 * zc
+
+
+def pencil_fits(y: ArrayLike, weights: ArrayLike, n_grid: int) -> tuple[Array, Array, Array]:
+    """Ellipsoids through too few points to fix one: the pencil of the design's two smallest
+    right singular vectors, sampled at ``n_grid`` members.
+
+    Returns per member the symmetric gain ``K`` (n_grid, 3, 3), the centre (n_grid, 3) and a
+    mask of the members that are ellipsoids.
+    """
+    z, c0, s0, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
+    x1, x2, x3 = z.T
+    D = np.column_stack(
+        [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3, 2 * z, np.ones(len(z))]
+    )
+    Z = np.linalg.svd(D * sw, full_matrices=True)[2][-2:]
+    t = np.linspace(0.0, np.pi, n_grid, endpoint=False)
+    theta = np.cos(t)[:, None] * Z[0] + np.sin(t)[:, None] * Z[1]
+    A = theta[:, SYM_INDEX]
+    beta, gamma = theta[:, 6:9], theta[:, 9]
+    ok = np.abs(np.linalg.det(A)) > 1e-12
+    A = np.where(ok[:, None, None], A, np.eye(3))
+    zc = -np.linalg.solve(A, beta[:, :, None])[:, :, 0]
+    k = np.einsum("ti,tij,tj->t", zc, A, zc) - gamma
+    M = A / np.where(np.abs(k) > 1e-300, k, 1.0)[:, None, None]
+    w, V = np.linalg.eigh(M)
+    ok &= np.all(w > 0, axis=1)
+    w = np.where(w > 0, w, 1.0)
+    K = s0 * (V / np.sqrt(w)[:, None, :]) @ V.transpose(0, 2, 1)
+    return K, c0 + s0 * zc, ok

@@ -45,6 +45,7 @@ from ..geometry.quadrics import (
     reverse_triangular_factor,
 )
 from ..calibration import Calibration, SensorCalibration
+from ..geometry.alignment import constant_angle
 from ..geometry.frames import GRAVITY, magnetic_reference
 from ..geometry.gauge import canonical_gauge
 from ..stats.poses import PoseStats
@@ -394,17 +395,9 @@ def _residual_hardened(
 
 
 def _closed_form_start(a: Array, m: Array) -> tuple[Array, float]:
-    """``aᵀ R m = β`` is linear in R's nine entries and β: the SVD null vector, projected.
-
-    Each pair gives one row ``[vec(a mᵀ), −1]``; the right singular vector of the smallest
-    singular value is ``(vec R, β)`` up to scale and sign, fixed by projecting onto SO(3).
-    """
-    rows = np.column_stack([_outer_rows(a, m), -np.ones(len(a))])
-    # the right singular vectors of the thin R factor are those of the tall matrix
-    x = np.linalg.svd(np.linalg.qr(rows, mode="r"))[2][-1]
-    x = x * (np.sign(np.linalg.det(x[:9].reshape(3, 3))) or 1.0)  # the proper solution
-    scale = 3.0 / np.sum(np.linalg.svd(x[:9].reshape(3, 3), compute_uv=False))
-    return project_to_so3(scale * x[:9].reshape(3, 3)), float(np.clip(scale * x[9], -1, 1))
+    """``aᵀ R m = β`` is linear in R's nine entries and β: the SVD null vector, projected onto
+    SO(3) (:func:`fieldcal.geometry.alignment.constant_angle`)."""
+    return constant_angle(a, m, proper=True)
 
 
 def _initial_beta(inclination_deg: float | None) -> float:

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration, SensorCalibration
+from ..geometry.frames import HALF_TURN_NORTH
 from ..geometry.gauge import canonical_gauge
 from ..stats.poses import PoseStats
 from ..geometry.rotations import quaternion_to_matrix
@@ -415,7 +416,7 @@ def run_greedy(
 
 
 # --------------------------------------------------------------------------- public fit
-_M = np.diag([1.0, -1.0, -1.0])  # half turn about the world x axis: M g = −g, M h = (h_x, 0, −h_z)
+_M = HALF_TURN_NORTH  # half turn about the world x axis: M g = −g, M h = (h_x, 0, −h_z)
 
 
 def to_fieldcal_gauge(state: GreedyState, body_frame: str = "accel") -> tuple[Array, ...]:

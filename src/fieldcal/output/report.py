@@ -1,7 +1,43 @@
-"""An HTML report (one self-contained file, figures as base64 PNGs) and optional PNG files.
+"""The HTML report of a calibration on the log it was made from (one self-contained file).
 
-matplotlib is an optional extra (``pip install 'fieldcal[plot]'``); it is imported only here,
-inside :func:`write_report`, so the rest of fieldcal works without it.
+:func:`write_report` writes one HTML page with every figure inlined as a base64 PNG (and, on
+request, each figure as a PNG file). From top to bottom the page shows:
+
+1. **Verdict banner**: green *pass*, amber *warn* or red *fail* with the verdict's reasons, one
+   per line; grey "no verdict" for a calibration file from fieldcal 0.1, which has none.
+2. **Summary**: the log, the columns used, the method, how many poses were found, fitted and
+   rejected, and the fit certificate (``J``, degrees of freedom, p-value).
+3. **Correction**: per sensor, the matrix firmware applies, ``M = inv(gain)`` (calibrated units
+   per raw unit), and the bias ``b`` (raw units), each entry ± its standard error, so that
+   ``body = M (raw − b)``. The standard errors of ``M`` come from the gain covariance by the
+   delta method (``dM = −M dK M``); the model's gain ``K`` ± its standard errors follows.
+4. **Uncertainty and predicted accuracy**: per-sample noise per axis, pose-level noise ± its
+   standard error, the reference field norms (the calibrated units), dip ± std,
+   misalignment ± std, and the predicted tilt, heading and norm errors.
+5. **Timeline**: the raw axes of each sensor against time (the log's time column, else the
+   sample number), the still intervals of the poses shaded (fitted green, rejected red and
+   hatched) and numbered. Long logs are drawn as a min/max envelope of a few thousand points,
+   so short spikes stay visible.
+6. **Per-pose residuals**: per sensor, the norm of ``pose mean − model`` in raw units, with the
+   error a pose mean is expected to have (``√(tr Σ / n + 3 q²)``: the noise of the mean plus
+   the pose-level noise ``q``) as a dashed step and ``q √3`` as a dotted line. Rejected poses
+   have no residual (they are not in the fit): they are marked on the axis in red and listed
+   with their statistic, p-value and reason in a table below the figure.
+7. **Norm histograms**: ``|a|`` and ``|m|`` of the calibrated still samples (rejected poses
+   stacked in red), with the expected norm (``|g|``, ``|h|``) as a vertical line, and the dip
+   of each still sample against the fitted dip.
+8. **Spheres**: raw and calibrated readings projected on the three coordinate planes.
+9. **Coverage**: each pose's field direction in the sensor frame (Mollweide), rejected poses in
+   red.
+
+Every piece of text that comes from the user or from a file (paths, column names, pose labels,
+verdict reasons) is HTML-escaped, and ``$`` is escaped in figure text so matplotlib does not
+read it as mathematics.
+
+matplotlib is an optional extra (``pip install 'fieldcal[plot]'``); it is imported in one place,
+:func:`_figure_class`, only when a report is written, so the rest of fieldcal works without it.
+Figures are drawn on :class:`matplotlib.figure.Figure` directly, so writing a report neither
+needs nor changes the pyplot backend.
 """
 
 from __future__ import annotations
@@ -9,47 +45,291 @@ from __future__ import annotations
 import base64
 import html
 import io as _io
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
-from ..calibration import Calibration
+from ..logs.io import Log
 
 __all__ = ["write_report"]
 
 Array = NDArray[np.float64]
 _MAX_POINTS = 2500  # enough to see the shape of a sphere, small enough for a light HTML file
+_TIMELINE_POINTS = 3000  # per line: the envelope of 1500 buckets
+_TIMELINE_LABELS = 40  # pose numbers written over the timeline, at most
+_DPI = 90
+
+_LABELS = {"accel": "accelerometer", "mag": "magnetometer"}
+_SYMBOLS = {"accel": "a", "mag": "m"}
+_FITTED, _REJECTED = "tab:green", "tab:red"
 
 
-def _pose_rows(cal: Calibration, log: Any) -> list[NDArray[np.int64]]:
-    """Row positions (in the loaded log) of each pose, from the calibration's start/stop."""
-    rows = []
+# ----------------------------------------------------------------------------- the poses
+@dataclass(frozen=True)
+class _Pose:
+    """One entry of ``cal.poses`` as the report draws it."""
+
+    position: int  # order in cal.poses: the x position in the pose plots
+    index: int  # the caller's pose number (that of RejectedPose.index)
+    name: str  # label or number, for axes and tables
+    spans: tuple[tuple[int, int], ...]  # kept-row ranges [lo, hi) of the log
+    rejected: str | None  # one line "sensor: reason", or None for a fitted pose
+    residual: dict[str, Array | None]  # raw units, per sensor
+    samples: dict[str, int | None]  # samples behind each sensor's pose mean
+
+    @property
+    def rows(self) -> NDArray[np.int64]:
+        """Kept-row positions of the pose's samples."""
+        if not self.spans:
+            return np.zeros(0, dtype=np.int64)
+        return np.concatenate([np.arange(a, b) for a, b in self.spans])
+
+
+def _poses(cal: Calibration, log: Log) -> list[_Pose]:
+    """The poses of ``cal`` with their rows in ``log`` (from ``start``/``stop`` or ``pieces``)."""
     last = int(log.index[-1]) + 1 if log.n else 0
-    for pose in cal.poses:
-        if "start" not in pose or "stop" not in pose:
-            continue
-        if pose["stop"] > last:
-            raise InputError(
-                f"{log.path}: the calibration's pose {pose.get('index', len(rows))} ends at row "
-                f"{pose['stop']} but the log has {last} rows; give the log it was made from"
+    reasons = {r.index: f"{r.sensor}: {r.reason}" for r in cal.rejected}
+    out = []
+    for position, pose in enumerate(cal.poses):
+        index = int(pose.get("index", position))
+        spans: tuple[tuple[int, int], ...] = ()
+        if "start" in pose and "stop" in pose:
+            if pose["stop"] > last:
+                raise InputError(
+                    f"{log.path}: the calibration's pose {index} ends at row {pose['stop']} but "
+                    f"the log has {last} rows; give the log it was made from"
+                )
+            pieces = pose.get("pieces") or [[pose["start"], pose["stop"]]]
+            lo, hi = np.searchsorted(log.index, np.asarray(pieces, dtype=np.int64).T)
+            spans = tuple((int(a), int(b)) for a, b in zip(lo, hi, strict=True) if b > a)
+        residual: dict[str, Array | None] = {}
+        samples: dict[str, int | None] = {}
+        for s in SENSORS:
+            value = pose.get(f"{s}_residual")
+            residual[s] = None if value is None else np.asarray(value, dtype=float)
+            count = pose.get(f"{s}_samples", pose.get("samples"))
+            samples[s] = None if count is None else int(count)
+        rejected = reasons.get(index, pose.get("rejected"))
+        out.append(
+            _Pose(
+                position=position,
+                index=index,
+                name=str(pose.get("label", index)),
+                spans=spans,
+                rejected=None if rejected is None else str(rejected),
+                residual=residual,
+                samples=samples,
             )
-        pieces = pose.get("pieces") or [[pose["start"], pose["stop"]]]
-        lo, hi = np.searchsorted(log.index, np.asarray(pieces, dtype=np.int64).T)
-        pose_rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
-        if pose_rows.size:
-            rows.append(pose_rows)
-    return rows
+        )
+    return out
+
+
+# ----------------------------------------------------------------------------- formatting
+def _esc(value: object) -> str:
+    """User or file text, printed literally in HTML."""
+    return html.escape(str(value), quote=True)
+
+
+def _plain(text: str) -> str:
+    """User text, printed literally in a figure (``$`` would start matplotlib mathematics)."""
+    return text.replace("$", r"\$")
+
+
+def _pm(value: float | None, std: float | None = None, digits: int = 6) -> str:
+    """``value ± std`` with the value rounded where the standard error's 2nd digit falls."""
+    if value is None or not np.isfinite(value):
+        return "n/a"
+    if std is None or not np.isfinite(std) or std <= 0:
+        return f"{value:.{digits}g}"
+    decimals = min(max(1 - math.floor(math.log10(std)), 0), 15)
+    return f"{value:.{decimals}f} ± {std:.{decimals}f}"
+
+
+def _unit(cal: Calibration, key: str) -> str:
+    return str(cal.units.get(key, "as given"))
+
+
+def _inverse_gain_std(sensor: SensorCalibration) -> Array | None:
+    """Standard errors of ``M = inv(gain)`` by the delta method, or ``None`` without a
+    covariance.
+
+    ``dM = −M dK M``; with row-major vectorisation ``vec(A X B) = (A ⊗ Bᵀ) vec(X)``, so the
+    Jacobian of ``vec(M)`` with respect to ``vec(K)`` is ``−(M ⊗ Mᵀ)``.
+    """
+    cov = sensor.covariance
+    names = [f"gain[{j},{k}]" for j in range(3) for k in range(3)]
+    if cov is None or not all(n in cov.names for n in names):
+        return None
+    idx = [cov.index(n) for n in names]
+    M = np.linalg.inv(sensor.gain)
+    J = -np.kron(M, M.T)
+    C = J @ cov.matrix[np.ix_(idx, idx)] @ J.T
+    return np.sqrt(np.maximum(np.diag(C), 0.0)).reshape(3, 3)
+
+
+# ----------------------------------------------------------------------------- figures
+def _figure_class() -> Callable[..., Any]:
+    """matplotlib's Figure: the one place matplotlib is imported (it is an optional extra)."""
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:
+        raise InputError("the report needs matplotlib; pip install 'fieldcal[plot]'") from None
+    return Figure
 
 
 def _thin(x: Array, rng: np.random.Generator) -> Array:
     return x if len(x) <= _MAX_POINTS else x[rng.choice(len(x), _MAX_POINTS, replace=False)]
 
 
-def _sphere_figure(plt: Any, name: str, raw: Array, calibrated: Array, radius: float) -> Any:
-    fig, axes = plt.subplots(2, 3, figsize=(11, 7))
+def _envelope(x: Array, y: Array) -> tuple[Array, Array]:
+    """At most :data:`_TIMELINE_POINTS` points tracing the min and max of ``y`` per bucket."""
+    n = len(y)
+    if n <= _TIMELINE_POINTS:
+        return x, y
+    starts = np.linspace(0, n, _TIMELINE_POINTS // 2, endpoint=False).astype(np.int64)
+    low = np.minimum.reduceat(y, starts)
+    high = np.maximum.reduceat(y, starts)
+    return np.repeat(x[starts], 2), np.column_stack([low, high]).ravel()
+
+
+def _timeline_figure(
+    Figure: Callable[..., Any], log: Log, sensors: list[str], poses: list[_Pose]
+) -> Any:
+    if log.time is not None:
+        x, xlabel = np.asarray(log.time, dtype=float), "time (s)"
+    else:
+        x, xlabel = np.arange(log.n, dtype=float), "sample (row of the log as loaded)"
+    fig = Figure(figsize=(11, 1.2 + 2.2 * len(sensors)))
+    axes = fig.subplots(len(sensors), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, s in zip(axes, sensors, strict=True):
+        raw = getattr(log, s)
+        for k, color in enumerate(("tab:red", "tab:green", "tab:blue")):
+            ax.plot(*_envelope(x, raw[:, k]), color=color, lw=0.7, label="xyz"[k])
+        ax.set_ylabel(f"raw {_LABELS[s]}")
+        for pose in poses:
+            for lo, hi in pose.spans:
+                if pose.rejected is None:
+                    ax.axvspan(x[lo], x[hi - 1], color=_FITTED, alpha=0.18, lw=0)
+                else:
+                    ax.axvspan(x[lo], x[hi - 1], facecolor=_REJECTED, alpha=0.3, hatch="//", lw=0)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
+    top = axes[0]
+    located = [p for p in poses if p.spans]
+    every = max(1, math.ceil(len(located) / _TIMELINE_LABELS))  # crowded logs: fewer numbers
+    for k, pose in enumerate(located):
+        if k % every and pose.rejected is None:  # rejected poses are always numbered
+            continue
+        middle = 0.5 * (x[pose.spans[0][0]] + x[pose.spans[-1][1] - 1])
+        top.text(
+            middle,
+            1.02 + 0.09 * ((k // every) % 2),  # two staggered rows, so neighbours do not overlap
+            _plain(pose.name),
+            transform=top.get_xaxis_transform(),
+            ha="center",
+            va="bottom",
+            fontsize=7,
+            color=_FITTED if pose.rejected is None else _REJECTED,
+        )
+    axes[-1].set_xlabel(xlabel)
+    fig.suptitle("log timeline: still intervals of fitted poses (green) and rejected ones (red)")
+    fig.subplots_adjust(left=0.08, right=0.95, top=1 - 0.95 / fig.get_figheight(), hspace=0.15)
+    return fig
+
+
+def _expected_error(sensor: SensorCalibration, samples: int | None) -> float:
+    """RMS norm of a pose mean's error: ``√(tr Σ / n + 3 q²)`` (NaN without a sample count)."""
+    if not samples:
+        return float("nan")
+    return float(np.sqrt(np.trace(sensor.noise_cov) / samples + 3 * sensor.pose_noise_std**2))
+
+
+def _residual_figure(
+    Figure: Callable[..., Any], cal: Calibration, sensors: list[str], poses: list[_Pose]
+) -> Any:
+    n = len(poses)
+    fig = Figure(figsize=(11, 0.8 + 2.6 * len(sensors)))
+    axes = fig.subplots(len(sensors), 1, sharex=True, squeeze=False)[:, 0]
+    position = np.arange(n)
+    for ax, s in zip(axes, sensors, strict=True):
+        sensor = cal.sensor(s)
+        norms = np.array(
+            [np.nan if p.residual[s] is None else np.linalg.norm(p.residual[s]) for p in poses]
+        )
+        ax.bar(position, norms, color="tab:blue", width=0.7, label="|pose mean − model|")
+        expected = np.array([_expected_error(sensor, p.samples[s]) for p in poses])
+        ax.step(
+            position,
+            expected,
+            where="mid",
+            color="k",
+            ls="--",
+            lw=1,
+            label="expected error of a pose mean √(tr Σ/n + 3q²)",
+        )
+        if sensor.pose_noise_std > 0:
+            ax.axhline(
+                sensor.pose_noise_std * np.sqrt(3),
+                color="tab:orange",
+                ls=":",
+                lw=1.2,
+                label="pose-level noise q√3",
+            )
+        rejected = [p.position for p in poses if p.rejected is not None]
+        for k in rejected:
+            ax.axvspan(k - 0.45, k + 0.45, color=_REJECTED, alpha=0.15, lw=0)
+        if rejected:
+            ax.plot(
+                rejected,
+                np.zeros(len(rejected)),
+                "X",
+                color=_REJECTED,
+                ms=9,
+                clip_on=False,
+                transform=ax.get_xaxis_transform(),
+                label="rejected (not in the fit; see the table)",
+            )
+        ax.set_ylim(bottom=0)
+        ax.set_ylabel(f"{_LABELS[s]}\n(raw units, {_plain(_unit(cal, f'{s}_raw'))})")
+    step = max(1, math.ceil(n / 40))
+    axes[-1].set_xticks(position[::step], [_plain(p.name) for p in poses[::step]], fontsize=7)
+    axes[-1].set_xlim(-0.6, n - 0.4)
+    axes[-1].set_xlabel("pose")
+    height = fig.get_figheight()
+    _legend_on_top(fig, axes, height)
+    fig.suptitle("per-pose residuals in raw units")
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.55 / height, top=1 - 0.95 / height)
+    return fig
+
+
+def _legend_on_top(fig: Any, axes: Any, height: float) -> None:
+    """One legend for all panels, under the title, so it hides no data."""
+    entries: dict[str, Any] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    fig.legend(
+        list(entries.values()),
+        list(entries),
+        loc="upper center",
+        bbox_to_anchor=(0.5, 1 - 0.35 / height),
+        ncol=min(len(entries), 4),
+        fontsize=8,
+        frameon=False,
+    )
+
+
+def _sphere_figure(
+    Figure: Callable[..., Any], name: str, raw: Array, calibrated: Array, radius: float
+) -> Any:
+    fig = Figure(figsize=(11, 7))
+    axes = fig.subplots(2, 3)
     circle = np.linspace(0, 2 * np.pi, 200)
     for k, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
         top, bottom = axes[0, k], axes[1, k]
@@ -66,155 +346,372 @@ def _sphere_figure(plt: Any, name: str, raw: Array, calibrated: Array, radius: f
     return fig
 
 
-def _coverage_figure(plt: Any, directions: dict[str, Array]) -> Any:
-    fig = plt.figure(figsize=(10, 4.5))
+def _coverage_figure(
+    Figure: Callable[..., Any], directions: dict[str, Array], poses: list[_Pose]
+) -> Any:
+    fig = Figure(figsize=(10, 4.5))
+    colors = [_FITTED if p.rejected is None else _REJECTED for p in poses]
     for k, (name, d) in enumerate(directions.items()):
         ax = fig.add_subplot(1, len(directions), k + 1, projection="mollweide")
         lon = np.arctan2(d[:, 1], d[:, 0])
         lat = np.arcsin(np.clip(d[:, 2], -1, 1))
-        ax.scatter(lon, lat, s=30, color="tab:green")
-        for i, (x, y) in enumerate(zip(lon, lat, strict=True)):
-            ax.annotate(str(i), (x, y), fontsize=7)
+        ax.scatter(lon, lat, s=30, color=colors)
+        for pose, x, y in zip(poses, lon, lat, strict=True):
+            ax.annotate(_plain(pose.name), (x, y), fontsize=7)
         ax.grid(True)
         ax.set_title(f"{name} field direction per pose (sensor frame)", pad=20)
     fig.subplots_adjust(left=0.04, right=0.98, wspace=0.15)
     return fig
 
 
-def _residual_figure(plt: Any, cal: Calibration) -> Any:
-    share = np.array([p.get("share", np.nan) for p in cal.poses], dtype=float)
-    fig, ax = plt.subplots(figsize=(10, 3.5))
-    n = len(share)
-    ax.bar(np.arange(n), 100 * share, color="tab:purple")
-    if n:
-        ax.axhline(100 / n, color="k", ls="--", lw=1, label="equal share")
-        ax.axhline(300 / n, color="tab:red", ls=":", lw=1, label="flag (3x equal)")
-        ax.legend()
-    ax.set_xlabel("pose")
-    ax.set_ylabel("share of the fit cost (%)")
-    ax.set_title("per-pose residuals")
-    fig.subplots_adjust(bottom=0.15)
-    return fig
-
-
 def _histogram_figure(
-    plt: Any, norms: dict[str, Array], dip: Array | None, cal: Calibration
+    Figure: Callable[..., Any],
+    norms: dict[str, tuple[Array, Array]],
+    expected: dict[str, float],
+    dip: Array | None,
+    cal: Calibration,
 ) -> Any:
     panels = len(norms) + (dip is not None)
-    fig, axes = plt.subplots(1, panels, figsize=(4 * panels, 3.5))
-    axes = np.atleast_1d(axes)
-    for ax, (name, values) in zip(axes, norms.items(), strict=False):
-        ax.hist(values, bins=60, color="tab:blue")
-        ax.set_title(f"|{name}| calibrated, still samples")
+    fig = Figure(figsize=(4 * panels, 3.5))
+    axes = np.atleast_1d(fig.subplots(1, panels))
+    for ax, (s, (fitted, rejected)) in zip(axes, norms.items(), strict=False):
+        symbol = _SYMBOLS[s]
+        target = expected[s]
+        # the range of the fitted poses (and the target): rejected ones may lie far off
+        span = np.concatenate([fitted, [target]]) if fitted.size else np.array([target])
+        lo, hi = float(span.min()), float(span.max())
+        pad = 0.05 * (hi - lo) or 0.01 * abs(target) or 0.01
+        edges = np.linspace(lo - pad, hi + pad, 61)
+        ax.hist(fitted, bins=edges, color="tab:blue", label="fitted poses")
+        if rejected.size:
+            outside = int(np.count_nonzero((rejected < edges[0]) | (rejected > edges[-1])))
+            label = "rejected poses" + (f" ({outside} samples off the axis)" if outside else "")
+            # an outline, so a large rejected pose does not hide the fitted ones
+            ax.hist(rejected, bins=edges, color=_REJECTED, histtype="step", lw=1.2, label=label)
+        ref = "g" if s == "accel" else "h"
+        ax.axvline(target, color="k", ls="--", lw=1.2, label=f"expected |{ref}| = {target:.6g}")
+        ax.set_title(f"|{symbol}| calibrated, still samples")
+        ax.legend(fontsize=7)
     if dip is not None:
         ax = axes[-1]
         ax.hist(dip, bins=60, color="tab:orange")
         if cal.dip_deg is not None:
             ax.axvline(cal.dip_deg, color="k", ls="--", lw=1, label=f"fit {cal.dip_deg:.2f}°")
-            ax.legend()
+            ax.legend(fontsize=7)
         ax.set_title("dip per still sample (°)")
-    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.12, wspace=0.25)
+    width = fig.get_figwidth()  # margins in inches, so one panel keeps its tick labels
+    fig.subplots_adjust(left=0.6 / width, right=1 - 0.1 / width, bottom=0.12, wspace=0.3)
     return fig
 
 
-def _summary_html(cal: Calibration) -> str:
-    rows = []
-    for name in ("accel", "mag"):
-        sensor = getattr(cal, name)
+# ----------------------------------------------------------------------------- HTML
+_CSS = (
+    "body{font-family:sans-serif;max-width:1100px;margin:auto;padding:0 1em}"
+    "th{text-align:left;padding-right:1em;font-weight:600}td{padding-right:1.2em}"
+    "table.num td{text-align:right;font-family:monospace}img{max-width:100%}"
+    ".verdict{border-left:8px solid;padding:.6em 1em;margin:1em 0;border-radius:4px}"
+    ".verdict h2{margin:.1em 0}.verdict ul{margin:.3em 0}"
+    ".pass{background:#e3f4e6;border-color:#2e8b3a}.warn{background:#fff3d6;border-color:#e0a000}"
+    ".fail{background:#fbe1e1;border-color:#c62828}.none{background:#eceff1;border-color:#78909c}"
+    ".caption{color:#444;font-size:90%}"
+)
+
+_HEADLINES = {
+    "pass": "PASS: the calibration can be trusted",
+    "warn": "WARN: usable, but look at the reasons",
+    "fail": "FAIL: do not use this calibration",
+}
+
+
+def _banner_html(cal: Calibration) -> str:
+    verdict = cal.verdict
+    if verdict is None:
+        return (
+            '<div class="verdict none"><h2>no verdict (calibration file from fieldcal 0.1)</h2>'
+            "<p>Calibrate the log again with this version to get one.</p></div>"
+        )
+    reasons = "".join(f"<li>{_esc(r)}</li>" for r in verdict.reasons)
+    body = f"<ul>{reasons}</ul>" if reasons else "<p>no reason for doubt was found</p>"
+    headline = _HEADLINES[verdict.level]
+    return f'<div class="verdict {_esc(verdict.level)}"><h2>{headline}</h2>{body}</div>'
+
+
+def _summary_html(cal: Calibration, log: Log, poses: list[_Pose]) -> str:
+    rows = [("log", f"{_esc(log.path)} ({log.n} rows used, {log.dropped} dropped)")]
+    if log.used:
+        columns = "; ".join(f"{_esc(k)}: {_esc(', '.join(v))}" for k, v in log.used.items())
+        rows.append(("columns", columns))
+    rows.extend(("note", _esc(note)) for note in log.notes)
+    n_rejected = sum(p.rejected is not None for p in poses) or len(cal.rejected)
+    rows.append(
+        (
+            "poses",
+            f"{max(len(poses), cal.n_poses)} found, {cal.n_poses} fitted, {n_rejected} rejected",
+        )
+    )
+    rows.append(("method", f"{_esc(cal.method)} (converged: {'yes' if cal.converged else 'no'})"))
+    if cal.message:
+        rows.append(("optimiser", _esc(cal.message)))
+    d = cal.diagnostics
+    if d is not None:
+        status = f", {_esc(d.status)}" if d.status else ""
+        rows.append(
+            ("certificate", f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g}{status}")
+        )
+    rows.append(("created", f"{_esc(cal.created)} by fieldcal {_esc(cal.version)}"))
+    return "<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
+
+
+def _cell(value: float, std: Array | None, *at: int) -> str:
+    return f"<td>{_pm(value, None if std is None else float(std[at]))}</td>"
+
+
+def _correction_html(cal: Calibration) -> str:
+    parts = [
+        "<h2>Correction</h2>",
+        "<p>Firmware applies <code>body = M (raw − b)</code> with <code>M = inv(gain)</code>. "
+        "Each entry ± its standard error; the errors of <code>M</code> come from the gain "
+        "covariance by the delta method (<code>dM = −M dK M</code>).</p>",
+    ]
+    for s in SENSORS:
+        sensor: SensorCalibration | None = getattr(cal, s)
         if sensor is None:
             continue
-        gain = "<br>".join(" ".join(f"{v:.6g}" for v in row) for row in sensor.gain)
-        bias = " ".join(f"{v:.6g}" for v in sensor.bias)
-        rows.append(f"<tr><th>{name} gain</th><td><code>{gain}</code></td></tr>")
-        rows.append(f"<tr><th>{name} bias</th><td><code>{bias}</code></td></tr>")
-        rows.append(
-            f"<tr><th>{name} noise source</th><td>{html.escape(sensor.noise_source)}</td></tr>"
+        raw, calibrated = _esc(_unit(cal, f"{s}_raw")), _esc(_unit(cal, f"{s}_calibrated"))
+        M = np.linalg.inv(sensor.gain)
+        M_std = _inverse_gain_std(sensor)
+        K_std, b_std = sensor.gain_std, sensor.bias_std
+        rows = []
+        for i in range(3):
+            m = "".join(_cell(M[i, j], M_std, i, j) for j in range(3))
+            k = "".join(_cell(sensor.gain[i, j], K_std, i, j) for j in range(3))
+            b = _cell(sensor.bias[i], b_std, i)
+            rows.append(f"<tr><th>{'xyz'[i]}</th>{m}{b}<td></td>{k}</tr>")
+        parts.append(
+            f"<h3>{_LABELS[s]}</h3><p>raw units: {raw}; calibrated units: {calibrated}</p>"
+            '<table class="num"><tr><th></th><th colspan="3">M = inv(gain) (calibrated per raw '
+            'unit)</th><th>bias b (raw units)</th><th></th><th colspan="3">gain K (model: raw = '
+            "K v + b)</th></tr>" + "".join(rows) + "</table>"
         )
+        if M_std is None:
+            parts.append("<p>no parameter covariance: standard errors are not available</p>")
+    return "".join(parts)
+
+
+def _uncertainty_html(cal: Calibration) -> str:
+    rows = []
+    for s in SENSORS:
+        sensor: SensorCalibration | None = getattr(cal, s)
+        if sensor is None:
+            continue
+        raw = _esc(_unit(cal, f"{s}_raw"))
+        sigma = np.sqrt(np.maximum(np.diag(sensor.noise_cov), 0.0))
+        se = None
+        if sensor.noise_cov_std is not None:  # se(σ) = se(σ²) / 2σ
+            se = np.diag(sensor.noise_cov_std) / np.maximum(2 * sigma, 1e-300)
+        noise = ", ".join(_pm(sigma[k], None if se is None else se[k], 4) for k in range(3))
+        rows.append(
+            (
+                f"{_LABELS[s]} noise per sample",
+                f"{noise} (raw units {raw}, per axis; source: {_esc(sensor.noise_source)})",
+            )
+        )
+        rows.append(
+            (
+                f"{_LABELS[s]} pose-level noise q",
+                f"{_pm(sensor.pose_noise_std, sensor.pose_noise_std_se, 4)} (raw units {raw}, "
+                "per axis)",
+            )
+        )
+    if cal.gravity_norm is not None:
+        rows.append(("|g| (calibrated accelerometer unit)", f"{cal.gravity_norm:.6g}"))
+    if cal.field_strength is not None:
+        rows.append(("|h| (calibrated magnetometer unit)", f"{cal.field_strength:.6g}"))
     if cal.dip_deg is not None:
-        rows.append(f"<tr><th>dip</th><td>{cal.dip_deg:.3f}°</td></tr>")
+        rows.append(("dip", f"{_pm(cal.dip_deg, cal.dip_std_deg, 4)}° (positive below horizon)"))
     if cal.misalignment_deg is not None:
-        rows.append(f"<tr><th>misalignment</th><td>{cal.misalignment_deg:.3f}°</td></tr>")
-    if cal.diagnostics is not None:
-        d = cal.diagnostics
         rows.append(
-            f"<tr><th>certificate</th><td>J = {d.statistic:.4g}, dof = {d.dof}, "
-            f"p = {d.p_value:.3g}</td></tr>"
+            (
+                "misalignment between the sensors",
+                f"{_pm(cal.misalignment_deg, cal.misalignment_std_deg, 4)}°",
+            )
         )
-    return "<table>" + "".join(rows) + "</table>"
+    acc = cal.accuracy
+    if acc is not None:
+        for label, value, scale, unit in (
+            ("predicted tilt error (1σ)", acc.tilt_deg, 1.0, "°"),
+            ("predicted heading error (1σ, level device)", acc.heading_deg, 1.0, "°"),
+            ("predicted |a| error (1σ, relative)", acc.accel_norm_rel, 100.0, " %"),
+            ("predicted |m| error (1σ, relative)", acc.mag_norm_rel, 100.0, " %"),
+        ):
+            if value is not None:
+                rows.append((label, f"{value * scale:.3g}{unit}"))
+    body = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows)
+    return f"<h2>Uncertainty and predicted accuracy</h2><table>{body}</table>"
+
+
+def _rejected_html(cal: Calibration, poses: list[_Pose]) -> str:
+    by_index = {p.index: p for p in poses}
+    rows = []
+    listed = set()
+    for r in cal.rejected:
+        pose = by_index.get(r.index)
+        listed.add(r.index)
+        rows.append(
+            (
+                pose.name if pose is not None else str(r.index),
+                _rows_text(cal, r.index),
+                r.sensor,
+                f"{r.statistic:.3g}",
+                f"{r.p_value:.2g}",
+                r.reason,
+            )
+        )
+    for pose in poses:  # files that list a pose as rejected without a RejectedPose
+        if pose.rejected is not None and pose.index not in listed:
+            sensor, _, reason = pose.rejected.partition(": ")
+            rows.append((pose.name, _rows_text(cal, pose.index), sensor, "", "", reason))
+    if not rows:
+        return "<p>No pose was rejected.</p>"
+    head = "".join(
+        f"<th>{h}</th>"
+        for h in ("pose", "rows", "sensor", "statistic", "p-value", "reason (and the fix)")
+    )
+    body = "".join("<tr>" + "".join(f"<td>{_esc(v)}</td>" for v in row) + "</tr>" for row in rows)
+    return f"<h3>Rejected poses</h3><table><tr>{head}</tr>{body}</table>"
+
+
+def _rows_text(cal: Calibration, index: int) -> str:
+    for pose in cal.poses:
+        if int(pose.get("index", -1)) == index and "start" in pose and "stop" in pose:
+            return f"{pose['start']}–{pose['stop']}"
+    return ""
+
+
+_CAPTIONS = {
+    "timeline": "Raw readings against time; shaded: the still intervals used as poses (green: "
+    "fitted, red hatched: rejected), numbered as in the tables.",
+    "residuals": "Norm of each pose mean minus the model's prediction, in raw units. The "
+    "dashed line is the error a pose mean is expected to carry; the fit absorbs part of it "
+    "(each pose's rotation is fitted too), so residuals of a good fit run well below the line, "
+    "and a bar far above it marks a pose that disagrees with the others. Rejected poses are not "
+    "in the fit and have no residual: red crosses, listed below with the reason.",
+    "histograms": "Norm of the calibrated still samples; dashed: the expected norm (the "
+    "reference field's magnitude, i.e. the calibrated unit).",
+    "accel_sphere": "Raw (top) and calibrated (bottom) accelerometer readings.",
+    "mag_sphere": "Raw (top) and calibrated (bottom) magnetometer readings.",
+    "coverage": "Field direction of each pose in the sensor frame (red: rejected). Poses "
+    "spread over the sphere determine the calibration best.",
+}
+
+_TITLES = {
+    "timeline": "Timeline of the log",
+    "residuals": "Per-pose residuals",
+    "histograms": "Norms of calibrated readings",
+    "accel_sphere": "Accelerometer readings",
+    "mag_sphere": "Magnetometer readings",
+    "coverage": "Pose coverage",
+}
 
 
 def write_report(
-    cal: Calibration, log: Any, output: str | Path, *, png_dir: str | Path | None = None
+    cal: Calibration, log: Log, output: str | Path, *, png_dir: str | Path | None = None
 ) -> None:
-    """Write the HTML report of ``cal`` on ``log`` (a :class:`fieldcal.io.Log`)."""
-    try:
-        import matplotlib
+    """Write the HTML report of ``cal`` on the log it was made from.
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise InputError("the report needs matplotlib; pip install 'fieldcal[plot]'") from None
+    Parameters
+    ----------
+    cal : Calibration
+        The result, e.g. of :func:`fieldcal.pipeline.calibrate_log` or read from its JSON; its
+        poses' ``start``/``stop`` (data-row numbers) locate them in ``log``.
+    log : Log
+        The log, as loaded by :func:`fieldcal.logs.io.load_log`.
+    output : str or Path
+        The HTML file to write (one self-contained page).
+    png_dir : str or Path, optional
+        Also write each figure there as ``<name>.png`` (``timeline``, ``residuals``,
+        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``).
+
+    Raises
+    ------
+    InputError
+        matplotlib is missing, the log has none of the calibrated sensors, or it is shorter
+        than the calibration's poses (not the log the calibration was made from).
+    """
+    Figure = _figure_class()
     rng = np.random.default_rng(0)
-    rows = _pose_rows(cal, log)
-    still = np.concatenate(rows) if rows else np.arange(log.n)
-    figures: dict[str, Any] = {}
-    norms: dict[str, Array] = {}
-    directions: dict[str, Array] = {}
-    corrected: dict[str, Array] = {}
-    for name, label in (("accel", "accelerometer"), ("mag", "magnetometer")):
-        raw = getattr(log, name)
-        if raw is None or getattr(cal, name) is None:
-            continue
-        fix = cal.correct_accel if name == "accel" else cal.correct_mag
-        if raw.shape[0] == 0:
-            continue
-        calibrated = fix(raw)
-        corrected[name] = calibrated
-        radius = cal.gravity_norm if name == "accel" else cal.field_strength
-        sample = _thin(np.arange(log.n), rng)
-        figures[f"{name}_sphere"] = _sphere_figure(
-            plt, label, raw[sample], calibrated[sample], radius or 1.0
-        )
-        norms[name] = np.linalg.norm(calibrated[still], axis=1)
-        if rows:
-            means = np.array([calibrated[r].mean(axis=0) for r in rows])
-            directions[label] = means / np.linalg.norm(means, axis=1, keepdims=True)
-    if not corrected:
+    poses = _poses(cal, log)
+    sensors = [
+        s
+        for s in SENSORS
+        if getattr(cal, s) is not None and getattr(log, s) is not None and log.n > 0
+    ]
+    if not sensors:
         raise InputError(
             f"{log.path}: none of the calibrated sensors' columns are in this log; pass "
             "--accel-cols/--mag-cols"
         )
-    if directions:
-        figures["coverage"] = _coverage_figure(plt, directions)
-    if cal.poses and "share" in cal.poses[0]:
-        figures["residuals"] = _residual_figure(plt, cal)
+    located = [p for p in poses if p.spans]
+    fitted_rows = [p.rows for p in located if p.rejected is None]
+    still = np.concatenate(fitted_rows) if fitted_rows else np.arange(log.n)
+    rejected_rows = [p.rows for p in located if p.rejected is not None]
+    dropped = np.concatenate(rejected_rows) if rejected_rows else np.zeros(0, dtype=np.int64)
+
+    figures: dict[str, Any] = {"timeline": _timeline_figure(Figure, log, sensors, poses)}
+    with_residuals = [s for s in sensors if any(p.residual[s] is not None for p in poses)]
+    if with_residuals:
+        figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)
+    corrected = {s: cal.sensor(s).correct(getattr(log, s)) for s in sensors}
+    norms = {
+        s: (np.linalg.norm(c[still], axis=1), np.linalg.norm(c[dropped], axis=1))
+        for s, c in corrected.items()
+    }
+    expected = {s: float(np.linalg.norm(cal.reference(s))) for s in sensors}
     dip = None
-    if "accel" in corrected and "mag" in corrected:
-        a = corrected["accel"][still]
-        m = corrected["mag"][still]
+    if len(sensors) == 2:
+        a, m = corrected["accel"][still], corrected["mag"][still]
         cos = np.einsum("ni,ni->n", a, m) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
         dip = np.degrees(np.arcsin(np.clip(-cos, -1, 1)))
-    figures["histograms"] = _histogram_figure(plt, norms, dip, cal)
+    figures["histograms"] = _histogram_figure(Figure, norms, expected, dip, cal)
+    sample = _thin(np.arange(log.n), rng)
+    for s in sensors:
+        figures[f"{s}_sphere"] = _sphere_figure(
+            Figure, _LABELS[s], getattr(log, s)[sample], corrected[s][sample], expected[s]
+        )
+    if located and len(located) == len(poses):
+        directions = {}
+        for s in sensors:
+            means = np.array([corrected[s][p.rows].mean(axis=0) for p in poses])
+            directions[_LABELS[s]] = means / np.linalg.norm(means, axis=1, keepdims=True)
+        figures["coverage"] = _coverage_figure(Figure, directions, poses)
 
-    images = []
     if png_dir is not None:
         Path(png_dir).mkdir(parents=True, exist_ok=True)
+    sections = []
     for key, fig in figures.items():
         buffer = _io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=90)
+        fig.savefig(buffer, format="png", dpi=_DPI)
         if png_dir is not None:
             (Path(png_dir) / f"{key}.png").write_bytes(buffer.getvalue())
-        plt.close(fig)
         encoded = base64.b64encode(buffer.getvalue()).decode("ascii")
-        images.append(
-            f'<h2>{html.escape(key)}</h2><img alt="{key}" src="data:image/png;base64,{encoded}">'
+        section = (
+            f"<h2>{_TITLES[key]}</h2><p class='caption'>{_CAPTIONS[key]}</p>"
+            f'<img alt="{_TITLES[key]}" src="data:image/png;base64,{encoded}">'
         )
+        if key == "residuals":
+            section += _rejected_html(cal, poses)
+        sections.append(section)
+    if "residuals" not in figures:
+        note = (
+            "<h2>Per-pose residuals</h2><p>This calibration file has no per-pose residuals "
+            "(written by fieldcal 0.1); calibrate the log again to see them.</p>"
+        )
+        sections.insert(1, note + _rejected_html(cal, poses))
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>fieldcal report</title>"
-        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-        "th{text-align:left;padding-right:1em}img{max-width:100%}</style></head><body>"
-        f"<h1>fieldcal report: {html.escape(str(log.path))}</h1>"
-        f"<p>method {html.escape(cal.method)}, {len(cal.poses)} poses, created "
-        f"{html.escape(cal.created)}</p>{_summary_html(cal)}{''.join(images)}</body></html>"
+        f"<style>{_CSS}</style></head><body>"
+        f"<h1>fieldcal report: {_esc(log.path)}</h1>"
+        f"{_banner_html(cal)}{_summary_html(cal, log, poses)}{_correction_html(cal)}"
+        f"{_uncertainty_html(cal)}{''.join(sections)}</body></html>"
     )
     Path(output).write_text(page, encoding="utf-8")

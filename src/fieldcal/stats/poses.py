@@ -16,7 +16,14 @@ from numpy.typing import ArrayLike, NDArray
 from .._frozen import ArrayDataclass
 from .trimming import trim_unsteady
 
-__all__ = ["PoseStats", "SensorStats", "as_pose_list", "stats_from_means", "summarize"]
+__all__ = [
+    "PoseStats",
+    "SensorStats",
+    "as_pose_list",
+    "check_spread",
+    "stats_from_means",
+    "summarize",
+]
 
 Array = NDArray[np.float64]
 
@@ -255,3 +262,35 @@ def stats_from_means(
             "pass the same poses for both sensors"
         )
     return stats
+
+
+#: Smallest singular value of the centred pose means, relative to the largest, below which the
+#: poses are taken to lie on a line (second) or in a plane (third).
+FLAT = 0.02
+
+
+def check_spread(stats: PoseStats) -> None:
+    """Refuse poses that cannot determine an ellipsoid: all rotations about one axis.
+
+    Then the pose means of each sensor lie on a circle (a plane) or on a point; the plane's
+    normal is, up to the small gain errors, the rotation axis, and poses with that axis tilted
+    out of the horizontal plane are what is missing. One-line ``ValueError`` naming it.
+    """
+    for name in stats.sensors:
+        means = stats.sensor(name).means
+        centred = means - means.mean(axis=0)
+        _, sv, Vt = np.linalg.svd(centred, full_matrices=False)
+        if sv[0] <= 1e-12 * max(1.0, float(np.abs(means).max())) or sv[1] < FLAT * sv[0]:
+            raise ValueError(
+                f"degenerate poses: the {name} readings barely change from pose to pose or lie "
+                "on a line; turn the device so that each of its axes points up and down in turn"
+            )
+        if sv[2] < FLAT * sv[0]:
+            normal = Vt[2] * np.sign(Vt[2][np.argmax(np.abs(Vt[2]))])
+            axis = "xyz"[int(np.argmax(np.abs(normal)))]
+            raise ValueError(
+                f"degenerate poses: the {name} readings lie in one plane (all rotations about "
+                f"one axis, normal ({normal[0]:+.2f}, {normal[1]:+.2f}, {normal[2]:+.2f}) in "
+                f"sensor axes, near the {axis} axis); add poses with the {axis} axis tilted up "
+                "and down, 45° or more"
+            )

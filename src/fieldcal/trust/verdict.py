@@ -58,6 +58,12 @@ RULES: dict[str, tuple[str, str]] = {
         "warn",
         "{count} pose(s) dropped as disturbed ({which}); see `rejected` for each and why",
     ),
+    "trimmed": (
+        "warn",
+        "{share:.0%} of the {sensor}'s samples were cut as not still ({poses} poses); rows of "
+        "another orientation inside a pose, or motion at the pose edges: check the pose "
+        "labels or shorten the still intervals",
+    ),
     "pose_noise": (
         "warn",
         "the {sensor}'s pose-to-pose error ({q:.3g} raw) is {ratio:.1f}x its per-sample noise: "
@@ -92,6 +98,8 @@ RULES: dict[str, tuple[str, str]] = {
 CONDITION_LIMIT = 1e10
 #: A pose-level error this many times the per-sample noise draws a warning.
 POSE_NOISE_RATIO = 3.0
+#: Share of a sensor's samples cut as not still above which the verdict warns.
+TRIMMED = 0.05
 #: Pose-level noise, relative to the field, that no rigid device at rest shows.
 NOT_RIGID = 0.05
 #: Smallest eigenvalue of the mean of ``u uᵀ`` over gravity directions for good coverage
@@ -158,6 +166,12 @@ def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
         sample = float(np.sqrt(np.trace(cov) / 3.0)) if cov is not None else 0.0
         if sample > 0 and sc.pose_noise_std > POSE_NOISE_RATIO * sample:
             add("pose_noise", sensor=s, q=sc.pose_noise_std, ratio=sc.pose_noise_std / sample)
+    for s in sensors:
+        trimmed = stats.sensor(s).trimmed
+        if trimmed is not None and trimmed.sum() > 0:
+            share = float(trimmed.sum() / (trimmed.sum() + stats.sensor(s).counts.sum()))
+            if share > TRIMMED:
+                add("trimmed", share=share, sensor=s, poses=int(np.count_nonzero(trimmed)))
     if found.rejected:
         which = ", ".join(f"pose {i} ({kind})" for i, kind in found.rejected[:6])
         more = "" if len(found.rejected) <= 6 else f" and {len(found.rejected) - 6} more"

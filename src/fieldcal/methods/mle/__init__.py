@@ -18,12 +18,12 @@ from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
-from ...stats.poses import PoseStats
+from ...stats.poses import PoseStats, check_spread
 from .lm import Result, levenberg_marquardt
 from .model import Problem, State, build_problem, field
 from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
 
-__all__ = ["check_spread", "fit", "state_from_calibration"]
+__all__ = ["fit", "state_from_calibration"]
 
 #: Closed-form starts (accelerometer's, magnetometer's ellipsoid family), in order: the first two
 #: always run, the others when the poses are few or the certificate is doubtful.
@@ -39,38 +39,6 @@ FEW_POSES = 12
 PENCIL_POSES = 12
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
-
-
-def _axis_name(n: np.ndarray) -> str:
-    k = int(np.argmax(np.abs(n)))
-    return "xyz"[k]
-
-
-def check_spread(stats: PoseStats) -> None:
-    """Refuse poses that cannot determine an ellipsoid: all rotations about one axis.
-
-    Then the pose means of each sensor lie on a circle (a plane) or on a point; the plane's
-    normal is, up to the small gain errors, the rotation axis, and poses with that axis tilted
-    out of the horizontal plane are what is missing.
-    """
-    for name in ("accel", "mag"):
-        st = getattr(stats, name)
-        if st is None:
-            continue
-        centred = st.means - st.means.mean(axis=0)
-        _, sv, Vt = np.linalg.svd(centred, full_matrices=False)
-        if sv[0] <= 1e-12 * max(1.0, float(np.abs(st.means).max())) or sv[1] < 0.02 * sv[0]:
-            raise ValueError(
-                f"degenerate poses: the {name} readings barely change from pose to pose or lie "
-                "on a line; turn the device so that each of its axes points up and down in turn"
-            )
-        if sv[2] < 0.02 * sv[0]:
-            ax = _axis_name(Vt[2])
-            raise ValueError(
-                f"degenerate poses: the {name} readings lie in one plane (all rotations about "
-                f"one axis, near the sensor's {ax} axis); add poses with the {ax} axis pointing "
-                f"up and down (tilted 45° or more)"
-            )
 
 
 def state_from_calibration(problem: Problem, cal: Calibration) -> State:
@@ -160,7 +128,7 @@ def fit(
                 "sensor parameters)"
             )
         )
-    check_spread(stats)
+    check_spread(stats)  # refuse rotations about one axis before any fit
     problem = build_problem(stats, body_frame)
 
     best: Result | None = None

@@ -18,81 +18,26 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ...geometry.alignment import constant_angle, constant_angle_rows
+from ...geometry.quadrics import family_fit, pencil_fits, spd_sqrt
 from ...geometry.rotations import exp_so3, wahba
-from ...geometry.frames import GRAVITY, magnetic_reference, twin_flip
+from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
 from .model import Problem, State, field
 
 Array = NDArray[np.float64]
 
 
-def _sqrtm_spd(M: Array) -> tuple[Array, Array]:
-    """Symmetric square root of an SPD matrix and of its inverse."""
-    w, V = np.linalg.eigh(M)
-    w = np.maximum(w, 1e-300)
-    return (V * np.sqrt(w)) @ V.T, (V / np.sqrt(w)) @ V.T
-
-
-def ellipsoid(y: Array, weights: Array, model: str = "full") -> tuple[Array, Array] | None:
-    """Weighted algebraic fit; returns (symmetric gain K_y, centre) or None if not an ellipsoid."""
-    wsum = weights.sum()
-    c0 = weights @ y / wsum
-    d = y - c0
-    s0 = np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum)
-    if not s0 > 0:
-        return None
-    z = d / s0
-    x1, x2, x3 = z.T
-    if model == "full":
-        quad = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
-    elif model == "axes":
-        quad = [x1 * x1, x2 * x2, x3 * x3]
-    else:
-        quad = [x1 * x1 + x2 * x2 + x3 * x3]
-    D = np.column_stack([*quad, 2 * z, np.ones(len(z))])
-    D *= np.sqrt(weights / wsum)[:, None]
-    if model == "full":
-        # Tie-breaker when the poses do not determine all 9 parameters (N = 8): the member of
-        # the quadric pencil closest to a sphere. Weak enough to leave well-posed fits alone.
-        D = np.vstack([D, _SPHERE_PULL])
-    theta = np.linalg.svd(D, full_matrices=False)[2][-1]
-    if model == "full":
-        A = theta[_SYM_INDEX]
-    elif model == "axes":
-        A = np.diag(theta[:3])
-    else:
-        A = np.eye(3) * theta[0]
-    beta, gamma = theta[-4:-1], theta[-1]
-    try:
-        zc = -np.linalg.solve(A, beta)
-    except np.linalg.LinAlgError:
-        return None
-    M = A / (zc @ A @ zc - gamma)
-    if not np.all(np.isfinite(M)):
-        return None
-    w, V = np.linalg.eigh(M)
-    if w[0] <= 0:
-        return None
-    return s0 * (V / np.sqrt(w)) @ V.T, c0 + s0 * zc
-
-
-_SYM_INDEX = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])
-_SPHERE_PULL = np.zeros((5, 10))
-_SPHERE_PULL[0, [0, 1]] = (1e-4, -1e-4)
-_SPHERE_PULL[1, [1, 2]] = (1e-4, -1e-4)
-_SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
-
-
 def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
     """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid."""
     w = problem.start_weight[sensor]
-    fit = ellipsoid(problem.start_mu[sensor], w, model)
+    fit = family_fit(problem.start_mu[sensor], w, model)
     if fit is None:
         return None
     Ky, cy = fit
     L = problem.start_chol[sensor]
     K = L @ Ky
     # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
-    P, _ = _sqrtm_spd(K @ K.T)
+    P, _ = spd_sqrt(K @ K.T)
     return P, L @ cy
 
 
@@ -100,29 +45,6 @@ def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
     means = problem.means[sensor]
     u = np.linalg.solve(K, (means - b).T).T
     return u / np.linalg.norm(u, axis=1, keepdims=True)
-
-
-#: Poses below which the constant-angle system's two-dimensional pencil is searched.
-PENCIL_BELOW = 12
-
-
-def align(u: Array, v: Array, weights: Array) -> tuple[Array, float]:
-    """Orthogonal Q and c with ``u_iᵀ Q v_i ≈ c`` for all poses (constant gravity-field angle)."""
-    rows = np.concatenate([np.einsum("ni,nj->nij", u, v).reshape(-1, 9), -np.ones((len(u), 1))], 1)
-    rows *= np.sqrt(weights)[:, None]
-    Vt = np.linalg.svd(rows, full_matrices=len(rows) < 10)[2]
-    Z = Vt[-2:]  # smallest two: the pencil holding the answer even when N is small
-    # with many poses the smallest singular vector is the answer; search the pencil otherwise
-    phi = np.linspace(0.0, np.pi, 37)[:-1] if len(u) < PENCIL_BELOW else np.array([np.pi / 2])
-    cand = np.cos(phi)[:, None] * Z[0] + np.sin(phi)[:, None] * Z[1]
-    Ms = cand[:, :9].reshape(-1, 3, 3)
-    Uq, _, Vq = np.linalg.svd(Ms)
-    Q = Uq @ Vq  # orthogonal polar factor, keeps the sign of det (reflections allowed)
-    proj = np.einsum("ni,kij,nj->kn", u, Q, v)
-    c = proj @ weights / np.sum(weights)
-    resid = ((proj - c[:, None]) ** 2) @ weights
-    best = int(np.argmin(resid))
-    return Q[best], float(np.clip(c[best], -1.0, 1.0))
 
 
 def min_rotations(f: Array, u: Array) -> Array:
@@ -162,7 +84,7 @@ def start_from_fits(problem: Problem, fits: dict[str, tuple[Array, Array]]) -> S
     u = _directions(problem, "accel", Ka, ba)
     vp = _directions(problem, "mag", Km, bm)
     w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
-    Q, c = align(u, vp, w)
+    Q, c = constant_angle(u, vp, w)
     dip = float(np.arcsin(-c))  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
     v = vp @ Q.T
     h = magnetic_reference(dip)
@@ -181,8 +103,7 @@ def to_frame(problem: Problem, state: State) -> State:
     if problem.joint and np.linalg.det(K) < 0:
         state = flip_other(problem, state, other=s)
         K = state.gains[s]
-    W, _, Vt = np.linalg.svd(K)
-    U = W @ Vt
+    U = orthogonal_polar_factor(K)
     state = state.copy()
     for k in state.gains:
         state.gains[k] = state.gains[k] @ U.T
@@ -206,39 +127,6 @@ def flip_other(problem: Problem, state: State, other: str) -> State:
     return state
 
 
-def _pencil(y: Array, weights: Array, n_grid: int) -> tuple[Array, Array, Array]:
-    """Ellipsoids through few points (N < 12): the pencil of the two smallest singular vectors.
-
-    Returns per grid member the symmetric gain ``K_y``, the centre (whitened coordinates) and a
-    validity mask (an ellipsoid, not another quadric).
-    """
-    wsum = weights.sum()
-    c0 = weights @ y / wsum
-    d = y - c0
-    s0 = np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum)
-    z = d / s0
-    x1, x2, x3 = z.T
-    D = np.column_stack(
-        [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3, 2 * z, np.ones(len(z))]
-    )
-    D *= np.sqrt(weights / wsum)[:, None]
-    Z = np.linalg.svd(D, full_matrices=True)[2][-2:]
-    t = np.linspace(0.0, np.pi, n_grid, endpoint=False)
-    theta = np.cos(t)[:, None] * Z[0] + np.sin(t)[:, None] * Z[1]
-    A = theta[:, _SYM_INDEX]
-    beta, gamma = theta[:, 6:9], theta[:, 9]
-    ok = np.abs(np.linalg.det(A)) > 1e-12
-    A = np.where(ok[:, None, None], A, np.eye(3))
-    zc = -np.linalg.solve(A, beta[:, :, None])[:, :, 0]
-    k = np.einsum("ti,tij,tj->t", zc, A, zc) - gamma
-    M = A / np.where(np.abs(k) > 1e-300, k, 1.0)[:, None, None]
-    w, V = np.linalg.eigh(M)
-    ok &= np.all(w > 0, axis=1)
-    w = np.where(w > 0, w, 1.0)
-    K = s0 * (V / np.sqrt(w)[:, None, :]) @ V.transpose(0, 2, 1)
-    return K, c0 + s0 * zc, ok
-
-
 def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[State]:
     """Starts for few poses (N < 12); with 8-9 each sensor's ellipsoid is not even determined.
 
@@ -251,7 +139,7 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
     w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
     dirs, pens = {}, {}
     for s in ("accel", "mag"):
-        K, c, ok = _pencil(problem.start_mu[s], problem.start_weight[s], n_grid)
+        K, c, ok = pencil_fits(problem.start_mu[s], problem.start_weight[s], n_grid)
         y = problem.start_mu[s]
         u = np.linalg.solve(K[:, None], (y[None] - c[:, None])[..., None])[..., 0]
         u /= np.linalg.norm(u, axis=-1, keepdims=True)
@@ -260,13 +148,8 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
     if len(ia) == 0:
         return []
     u, v = dirs["accel"][ia], dirs["mag"][im]  # (P, N, 3)
-    rows = (
-        np.concatenate(
-            [np.einsum("pni,pnj->pnij", u, v).reshape(len(ia), -1, 9), -np.ones((*u.shape[:2], 1))],
-            axis=2,
-        )
-        * np.sqrt(w)[None, :, None]
-    )
+    rows = np.stack([constant_angle_rows(a, b) for a, b in zip(u, v, strict=True)])
+    rows *= np.sqrt(w)[None, :, None]
     Z = np.linalg.svd(rows, full_matrices=True)[2][:, -2:]  # (P, 2, 10)
     phi = np.linspace(0.0, np.pi, 24, endpoint=False)
     cand = np.cos(phi)[None, :, None] * Z[:, None, 0] + np.sin(phi)[None, :, None] * Z[:, None, 1]
@@ -282,7 +165,7 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
             K, centre, _ = pens[s]
             L = problem.start_chol[s]
             Kr = L @ K[i]
-            P, _ = _sqrtm_spd(Kr @ Kr.T)
+            P, _ = spd_sqrt(Kr @ Kr.T)
             fits[s] = (P, L @ centre[i])
         starts.append(start_from_fits(problem, fits))
     return starts
