@@ -1,16 +1,23 @@
-"""Every command through click's CliRunner, and a one-line error with exit code 2 for bad input."""
+"""Every command through click's CliRunner: the verdict first, exit code 3 on a fail verdict
+(files still written), and a one-line error with exit code 2 for bad input."""
 
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 import fieldcal
-from fieldcal.cli import cli
+from fieldcal.cli import EXIT_FAIL, cli
 from fieldcal.geometry.rotations import exp_so3
+from fieldcal.methods import METHODS
+from fieldcal.output.exports import FORMATS
+from fieldcal.output.summary import MAX_POSE_ROWS
 
 
 def run(*args, ok=True):
@@ -32,15 +39,32 @@ def user_error(*args, match):
 
 
 def _pose_csv(path, accel, mag=None, labels=None):
-    counts = [len(a) for a in accel]
-    labels = labels if labels is not None else np.repeat(np.arange(len(accel)), counts)
-    cols = [labels, np.concatenate(accel)]
-    header = "pose,ax,ay,az"
+    """A log with a pose column; ``accel`` or ``mag`` may be None for a one-sensor log."""
+    first = accel if accel is not None else mag
+    counts = [len(a) for a in first]
+    labels = labels if labels is not None else np.repeat(np.arange(len(first)), counts)
+    cols, header = [labels], "pose"
+    if accel is not None:
+        cols.append(np.concatenate(accel))
+        header += ",ax,ay,az"
     if mag is not None:
         cols.append(np.concatenate(mag))
         header += ",mx,my,mz"
     np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="", fmt="%.10g")
     return path
+
+
+def _lines(text):
+    return text.splitlines()
+
+
+@pytest.fixture(scope="module")
+def disturbed(tmp_path_factory):
+    """20 poses whose pose 3 has a magnetometer offset of 30 % of the field (iron nearby)."""
+    session = fieldcal.simulate("paper", seed=4, n_poses=20)
+    mag = [m.copy() for m in session.mag]
+    mag[3] += np.array([0.3, 0.0, 0.0]) * np.abs(mag[3]).max()
+    return _pose_csv(tmp_path_factory.mktemp("disturbed") / "s.csv", session.accel, mag)
 
 
 @pytest.fixture(scope="module")
@@ -59,9 +83,46 @@ def test_version_and_help():
         assert "Usage: " in run(command, "--help").output
 
 
+def test_version_and_help_load_no_heavy_module():
+    # --version and --help import numpy, click and fieldcal's light modules only
+    code = (
+        "import sys\n"
+        "from fieldcal.cli import cli\n"
+        "for args in (['--version'], ['--help'], ['calibrate', '--help']):\n"
+        "    try:\n"
+        "        cli(args, prog_name='fieldcal')\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "heavy = ('rich', 'scipy', 'matplotlib', 'fieldcal.pipeline', 'fieldcal.trust')\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy or m in heavy))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_choices_come_from_the_registries():
+    params = {c: {p.name: p for p in cli.commands[c].params} for c in ("calibrate", "export")}
+    assert list(params["calibrate"]["method"].type.choices) == list(METHODS)
+    assert params["calibrate"]["method"].default == "mle"
+    assert list(params["export"]["fmt"].type.choices) == list(FORMATS)
+
+
 def test_calibrate_summary_and_json(files):
     out = files["summary"]
+    doc = json.loads(files["cal"].read_text())
+    # the verdict first, then each reason on its own line
+    verdict = doc["verdict"]
+    assert verdict["level"] == "pass"
+    lines = _lines(out)
+    assert lines[0] == "verdict: PASS"
+    assert lines[1 : 1 + len(verdict["reasons"])] == [f"  {r}" for r in verdict["reasons"]]
     for text in (
+        "pose-level noise std per axis (raw units)",
+        "predicted accuracy after calibration",
+        "tilt ",
+        "heading ",
+        "|a| ",
+        "|m| ",
         "columns used: accel = ax,ay,az; mag = mx,my,mz; pose = pose",
         "15 poses grouped by the pose column",
         "accelerometer",
@@ -73,9 +134,10 @@ def test_calibrate_summary_and_json(files):
         "within-pose scatter",
     ):
         assert text in out
-    doc = json.loads(files["cal"].read_text())
     cal = fieldcal.Calibration.from_json(files["cal"].read_text())
     truth = fieldcal.Calibration.from_json((files["folder"] / "truth.json").read_text())
+    assert doc["accuracy"]["tilt_deg"] > 0 and doc["rejected"] == []
+    assert doc["accel"]["pose_noise_std"] >= 0 and doc["mag"]["pose_noise_std"] >= 0
     assert cal.gravity_norm == pytest.approx(9.80665)
     assert abs(cal.dip_deg - truth.dip_deg) < 1.0
     assert len(doc["poses"]) == 15
@@ -84,10 +146,109 @@ def test_calibrate_summary_and_json(files):
     assert first["label"] == "0" and first["start"] == 0 and first["stop"] == first["samples"]
 
 
-def test_calibrate_json_and_quiet(files, tmp_path):
-    out = run("calibrate", files["session"], "-o", tmp_path / "c.json", "--json").output
+def test_calibrate_json_and_quiet(files, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    # --json alone prints the document and writes nothing
+    out = run("calibrate", files["session"], "--json").stdout
     assert json.loads(out)["schema"] == "fieldcal.calibration"
-    assert run("calibrate", files["session"], "-o", tmp_path / "c.json", "--quiet").output == ""
+    assert list(tmp_path.iterdir()) == []
+    # with -o it also writes the file, the same document
+    out = run("calibrate", files["session"], "--json", "-o", "c.json").stdout
+    assert json.loads(out)["verdict"] == json.loads((tmp_path / "c.json").read_text())["verdict"]
+    assert run("calibrate", files["session"], "-o", "q.json", "--quiet").output == ""
+    # without -o and --json: cal.json
+    run("calibrate", files["session"], "--quiet")
+    assert {p.name for p in tmp_path.iterdir()} == {"c.json", "q.json", "cal.json"}
+
+
+def test_fail_verdict_exits_3_and_still_writes(files, tmp_path):
+    # the magnetometer columns are a copy of the accelerometer's: the verdict must be fail
+    session = fieldcal.simulate("paper", seed=4)
+    path = _pose_csv(tmp_path / "copy.csv", session.accel, [a.copy() for a in session.accel])
+    result = run("calibrate", path, "-o", tmp_path / "c.json", ok=False)
+    assert result.exit_code == EXIT_FAIL == 3, (result.output, result.exception)
+    doc = json.loads((tmp_path / "c.json").read_text())
+    assert doc["verdict"]["level"] == "fail"
+    assert any("affine copy" in r for r in doc["verdict"]["reasons"])
+    lines = _lines(result.stdout)
+    assert lines[0] == "verdict: FAIL" and "affine copy" in lines[1]
+    assert lines[-1] == f"wrote {tmp_path / 'c.json'}"
+    # --json: the document on stdout, the verdict on stderr, exit code 3 all the same
+    result = run("calibrate", path, "--json", "-o", tmp_path / "j.json", ok=False)
+    assert result.exit_code == 3 and (tmp_path / "j.json").is_file()
+    assert json.loads(result.stdout)["verdict"]["level"] == "fail"
+    assert _lines(result.stderr)[0] == "verdict: FAIL"
+    result = run("calibrate", path, "-q", "-o", tmp_path / "q.json", ok=False)
+    assert result.exit_code == 3 and result.stdout == "" and (tmp_path / "q.json").is_file()
+    assert "affine copy" in result.stderr
+
+
+def test_rejected_poses_listed_with_reasons(disturbed, tmp_path):
+    out = run("calibrate", disturbed, "-o", tmp_path / "r.json").output
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert [(r["index"], r["sensor"]) for r in doc["rejected"]] == [(3, "mag")]
+    assert doc["verdict"]["level"] == "warn" and _lines(out)[0] == "verdict: WARN"
+    assert "rejected" in doc["poses"][3] and "rejected" not in doc["poses"][2]
+    reason = doc["rejected"][0]["reason"]
+    assert "rejected poses (1, left out of the fit):" in out
+    assert f"  pose 3 (mag, p = {doc['rejected'][0]['p_value']:.2g}): {reason}" in out
+
+
+def test_no_robust_and_pose_noise_options(disturbed, tmp_path):
+    result = run("calibrate", disturbed, "--no-robust", "-o", tmp_path / "n.json", ok=False)
+    doc = json.loads((tmp_path / "n.json").read_text())
+    assert doc["rejected"] == [] and doc["options"]["robust"] is False
+    assert doc["options"]["trim"] is False
+    assert result.exit_code == (3 if doc["verdict"]["level"] == "fail" else 0)
+    run("calibrate", disturbed, "--pose-noise", "accel=0.001,mag=0.002", "-o", tmp_path / "q.json")
+    doc = json.loads((tmp_path / "q.json").read_text())
+    assert doc["accel"]["pose_noise_std"] == 0.001 and doc["mag"]["pose_noise_std"] == 0.002
+    result = run(
+        "calibrate", disturbed, "--pose-noise", "none", "-o", tmp_path / "z.json", ok=False
+    )
+    doc = json.loads((tmp_path / "z.json").read_text())
+    assert result.exit_code == (3 if doc["verdict"]["level"] == "fail" else 0)
+    assert doc["accel"]["pose_noise_std"] == doc["mag"]["pose_noise_std"] == 0.0
+    for bad in ("lots", "-1", "gyro=0.1", "accel=0.1,mag=x"):
+        user_error("calibrate", disturbed, "--pose-noise", bad, match="--pose-noise")
+
+
+def test_one_sensor_summary_has_no_dip(tmp_path):
+    session = fieldcal.simulate("paper", seed=3)
+    for name, accel, mag in (("a", session.accel, None), ("m", None, session.mag)):
+        path = _pose_csv(tmp_path / f"{name}.csv", accel, mag)
+        out = run("calibrate", path, "-o", tmp_path / f"{name}.json").output
+        doc = json.loads((tmp_path / f"{name}.json").read_text())
+        assert doc["dip_deg"] is None
+        assert "dip angle" not in out and "heading" not in out and "misalignment" not in out
+        assert ("tilt " in out) == (accel is not None) and ("|m| " in out) == (mag is not None)
+
+
+def test_long_pose_table_is_cut(tmp_path):
+    n = MAX_POSE_ROWS + 5
+    session = fieldcal.simulate("paper", seed=5, n_poses=n)
+    path = _pose_csv(tmp_path / "s.csv", session.accel, session.mag)
+    out = run("calibrate", path, "-o", tmp_path / "c.json").output
+    assert len(json.loads((tmp_path / "c.json").read_text())["poses"]) == n
+    assert "… and 5 more poses" in out
+    rows = [line.split()[0] for line in _lines(out) if line.strip()[:2].strip().isdigit()]
+    assert str(MAX_POSE_ROWS - 1) in rows and str(MAX_POSE_ROWS) not in rows
+
+
+def test_user_text_is_printed_literally(tmp_path):
+    # column names, labels and paths that look like rich markup or emoji codes
+    session = fieldcal.simulate("paper", seed=4)
+    labels = np.repeat([f"[i]p{i}:smile:" for i in range(15)], [len(a) for a in session.accel])
+    path = tmp_path / "m.csv"
+    rows = np.column_stack([np.concatenate(session.accel), np.concatenate(session.mag)])
+    with path.open("w") as f:
+        f.write("pose,[bold]x,[bold]y,[bold]z,mx,my,mz\n")
+        for label, row in zip(labels, rows, strict=True):
+            f.write(label + "," + ",".join(f"{v:.10g}" for v in row) + "\n")
+    output = tmp_path / "[red]c.json"
+    out = run("calibrate", path, "--accel-cols", "[bold]x,[bold]y,[bold]z", "-o", output).output
+    assert "accel = [bold]x,[bold]y,[bold]z" in out
+    assert "[i]p0:smile:" in out and f"wrote {output}" in out and output.is_file()
 
 
 def test_calibrate_continuous_log_detects_poses(tmp_path):
@@ -144,6 +305,19 @@ def test_export(files, fmt, text, tmp_path):
     assert text in run("export", files["cal"], "--format", fmt).output
     run("export", files["cal"], "--format", fmt, "-o", tmp_path / "x")
     assert text in (tmp_path / "x").read_text()
+    # without --format, the suffix of -o names the format
+    out = tmp_path / f"cal{FORMATS[fmt].suffix}"
+    run("export", files["cal"], "-o", out)
+    assert text in out.read_text()
+
+
+def test_export_default_format_and_bad_format(files):
+    assert "FIELDCAL_ACCEL_MATRIX" in run("export", files["cal"]).output
+    # a version 1 file (fieldcal 0.1) exports too
+    v1 = Path(__file__).parent / "data" / "calibration-v0.1.json"
+    assert "FIELDCAL_MAG_MATRIX" in run("export", v1, "--format", "c-header").output
+    result = run("export", files["cal"], "--format", "excel", ok=False)
+    assert result.exit_code == 2 and "c-header" in result.output
 
 
 def test_report(files, tmp_path):
@@ -159,19 +333,13 @@ def test_demo(tmp_path):
     out = run("demo", "--out", tmp_path, "--no-report").output
     assert "truth vs estimate" in out and "δ (accel, Eq. 19) =" in out and "δ (mag" in out
     assert "15 poses found by still detection" in out
+    # the clean simulated session passes; the verdict comes right after the simulation line
+    assert _lines(out)[1] == "verdict: PASS"
+    assert json.loads((tmp_path / "cal.json").read_text())["verdict"]["level"] == "pass"
 
 
 def test_demo_without_matplotlib(tmp_path, monkeypatch):
-    import builtins
-
-    real_import = builtins.__import__
-
-    def no_matplotlib(name, *args, **kwargs):
-        if name.startswith("matplotlib"):
-            raise ImportError(name)
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_matplotlib)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if it were not installed
     out = run("demo", "--out", tmp_path).output
     assert "skipped the report" in out and not (tmp_path / "report.html").exists()
 

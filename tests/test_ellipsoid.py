@@ -21,9 +21,9 @@ from fieldcal.geometry.quadrics import (
     quadric_from_coefficients,
     reverse_triangular_factor,
 )
+from fieldcal.geometry.rotations import exp_so3, random_rotations, rotation_angle_deg
 from fieldcal.methods import ellipsoid as method
 from fieldcal.metrics import reconstruction_error
-from fieldcal.geometry.rotations import exp_so3, random_rotations, rotation_angle_deg
 
 L_TRUE = np.array([[1.10, 0.0, 0.0], [0.05, 0.90, 0.0], [-0.03, 0.08, 1.05]])
 C_TRUE = np.array([0.3, -0.2, 0.5])

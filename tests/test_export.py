@@ -1,17 +1,24 @@
-"""Each export, applied the way its target tool applies it, gives fieldcal's calibrated values."""
+"""Each export, applied the way its target tool applies it, gives fieldcal's calibrated values;
+the registry is the one list of formats; every number parses in its target."""
 
 from __future__ import annotations
 
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.errors import InputError
-from fieldcal.output.exports import export
+from fieldcal.calibration import Calibration, SensorCalibration
+from fieldcal.output.exports import FORMATS, export, for_path, markdown_table
+from fieldcal.output.exports.c_header import c_float
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+#: A C float literal with a decimal point, e.g. 1.0f, -0.25f, 1.5e-30f.
+_C_FLOAT = r"-?\d+\.\d+(e[-+]\d+)?f"
 
 
 @pytest.fixture(scope="module")
@@ -33,9 +40,71 @@ def _numbers(text):
     return np.array([float(v.rstrip("f")) for v in re.findall(r"-?[\d.]+(?:e[-+]?\d+)?f?", text)])
 
 
+def _cal(accel_gain, accel_bias, mag_gain, mag_bias):
+    def sensor(gain, bias):
+        return SensorCalibration(gain=gain, bias=bias, noise_cov=np.eye(3))
+
+    return Calibration(
+        accel=sensor(accel_gain, accel_bias),
+        mag=sensor(mag_gain, mag_bias),
+        gravity=np.array([0.0, 0.0, -1.0]),
+        magnetic=np.array([0.5, 0.0, 0.8]),
+        rotations=np.zeros((0, 3, 3)),
+        method="truth",
+    )
+
+
+def test_registry(cal):
+    assert list(FORMATS) == ["c-header", "matlab", "magneto", "json"]
+    for name, fmt in FORMATS.items():
+        assert fmt.name == name and fmt.suffix.startswith(".")
+        assert fmt.formula in export(cal, name)  # the text states the formula word for word
+        assert fmt.write(cal) == export(cal, name)
+        assert for_path(f"out/cal{fmt.suffix.upper()}") is fmt
+    assert len({f.suffix for f in FORMATS.values()}) == len(FORMATS)
+    assert for_path("cal.xlsx") is None
+
+
+def test_docs_table_is_the_registry():
+    assert markdown_table() in (DOCS / "cli.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    ("x", "text"),
+    [
+        (1.0, "1.0f"),
+        (0.0, "0.0f"),
+        (-0.0, "-0.0f"),
+        (-3.0, "-3.0f"),
+        (1e30, "1.0e+30f"),
+        (-1e-30, "-1.0e-30f"),
+        (0.1, "0.1f"),
+        (123456789.0, "1.2345679e+08f"),  # the nearest float32, 123456792
+        (1e-50, "0.0f"),  # below float32: the zero a float holds (a nonzero literal is refused)
+    ],
+)
+def test_c_float_literals(x, text):
+    assert c_float(x) == text
+
+
+def test_c_float_reads_back_as_the_same_float32():
+    rng = np.random.default_rng(7)
+    values = rng.normal(size=200) * 10.0 ** rng.integers(-35, 35, size=200)
+    for v in values:
+        text = c_float(v)
+        assert re.fullmatch(_C_FLOAT, text), text
+        assert np.float32(text[:-1]) == np.float32(v)
+
+
+def test_c_float_refuses_what_a_float_cannot_hold():
+    for x in (1e39, -1e39, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="C float"):
+            c_float(x)
+
+
 def test_c_header_formula_in_float32(cal, raw):
     text = export(cal, "c-header")
-    assert "out = inv(gain) * (raw - bias)" in text
+    assert FORMATS["c-header"].formula in text
     for sensor, want in _expected(cal, raw).items():
         tag = sensor.upper()
         b = _numbers(re.search(rf"FIELDCAL_{tag}_BIAS\[3\] = \{{(.*?)\}};", text).group(1))
@@ -48,36 +117,74 @@ def test_c_header_formula_in_float32(cal, raw):
         assert np.allclose(got, want, rtol=1e-5, atol=1e-5 * np.abs(want).max())
 
 
-@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler on this machine")
-def test_c_header_compiles_and_runs(cal, raw, tmp_path):
+def _compile_and_apply(tmp_path, cal, raw):
+    """Compile the header with ``cc -Wall -Wextra -Werror`` and apply it to one reading per
+    sensor; the outputs as the C program prints them."""
     (tmp_path / "cal.h").write_text(export(cal, "c-header"))
-    r = [float(v) for v in raw["mag"][0]]
+    calls = []
+    for sensor, r in raw.items():
+        tag = sensor.upper()
+        literals = ", ".join(c_float(v) for v in r)
+        calls.append(
+            f"  {{ const float raw[3] = {{{literals}}}; float out[3];\n"
+            f"    fieldcal_apply(FIELDCAL_{tag}_MATRIX, FIELDCAL_{tag}_BIAS, raw, out);\n"
+            '    printf("%.9g %.9g %.9g\\n", out[0], out[1], out[2]); }'
+        )
     (tmp_path / "main.c").write_text(
         '#include <stdio.h>\n#include "cal.h"\nint main(void) {\n'
-        f"  const float raw[3] = {{{r[0]!r}f, {r[1]!r}f, {r[2]!r}f}}; float out[3];\n"
-        "  fieldcal_apply(FIELDCAL_MAG_MATRIX, FIELDCAL_MAG_BIAS, raw, out);\n"
-        '  printf("%.9g %.9g %.9g\\n", out[0], out[1], out[2]); return 0; }\n'
+        + "\n".join(calls)
+        + "\n  return 0;\n}\n"
     )
-    subprocess.run(
-        [
-            "cc",
-            "-std=c99",
-            "-Wall",
-            "-Werror",
-            "-o",
-            str(tmp_path / "a.out"),
-            str(tmp_path / "main.c"),
-        ],
-        check=True,
+    exe = tmp_path / "a.out"
+    flags = ["-std=c99", "-Wall", "-Wextra", "-Werror"]
+    subprocess.run(["cc", *flags, "-o", str(exe), str(tmp_path / "main.c")], check=True)
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True)
+    rows = [np.array(line.split(), dtype=float) for line in out.stdout.splitlines()]
+    return dict(zip(raw, rows, strict=True))
+
+
+needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler on this machine")
+
+
+@needs_cc
+def test_c_header_compiles_and_runs(cal, raw, tmp_path):
+    one = {s: raw[s][0] for s in ("accel", "mag")}
+    got = _compile_and_apply(tmp_path, cal, one)
+    assert np.allclose(got["mag"], cal.correct_mag(one["mag"]), rtol=1e-5, atol=1e-4)
+    assert np.allclose(got["accel"], cal.correct_accel(one["accel"]), rtol=1e-5, atol=1e-4)
+
+
+@needs_cc
+@pytest.mark.parametrize(
+    ("gains", "biases"),
+    [
+        ((1.0, 1.0), (0.0, 0.0)),  # identity and zero: 1.0f and 0.0f, never 1f
+        ((1e30, 1e-30), (1e30, -1e-30)),  # extreme but float32 entries: 1e-30f, 1e+30f
+    ],
+    ids=["identity", "extreme"],
+)
+def test_c_header_compiles_for_any_float32_calibration(gains, biases, tmp_path):
+    cal = _cal(
+        gains[0] * np.eye(3), np.full(3, biases[0]), gains[1] * np.eye(3), np.full(3, biases[1])
     )
-    out = subprocess.run([str(tmp_path / "a.out")], check=True, capture_output=True, text=True)
-    got = np.array(out.stdout.split(), dtype=float)
-    assert np.allclose(got, cal.correct_mag(r), rtol=1e-5, atol=1e-4)
+    text = export(cal, "c-header")
+    arrays = re.findall(r"FIELDCAL_\w+(?:\[3\])+ = \{(.*?)\};", text, re.S)
+    literals = [v.strip(" {}\n") for a in arrays for v in a.split(",")]
+    assert len(literals) == 24 and all(re.fullmatch(_C_FLOAT, v) for v in literals), literals
+    # readings one field unit from the bias along each axis come out as (1, 2, 3)
+    raw = {
+        "accel": biases[0] + gains[0] * np.array([1.0, 2.0, 3.0]),
+        "mag": biases[1] + gains[1] * np.array([1.0, 2.0, 3.0]),
+    }
+    got = _compile_and_apply(tmp_path, cal, raw)
+    for sensor in ("accel", "mag"):
+        assert np.allclose(got[sensor], cal.sensor(sensor).correct(raw[sensor]), rtol=1e-5)
+        assert np.allclose(got[sensor], [1.0, 2.0, 3.0], rtol=1e-5)
 
 
 def test_matlab_magcal_convention(cal, raw):
     text = export(cal, "matlab")
-    assert "C = (D - b) * A" in text
+    assert "C = (D - b) * A" in text and FORMATS["matlab"].formula in text
     for sensor, want in _expected(cal, raw).items():
         A = _numbers(re.search(rf"A_{sensor} = \[(.*?)\];", text).group(1)).reshape(3, 3)
         b = _numbers(re.search(rf"b_{sensor} = \[(.*?)\];", text).group(1)).reshape(1, 3)
@@ -103,5 +210,6 @@ def test_json_round_trip(cal, raw):
 
 
 def test_unknown_format(cal):
-    with pytest.raises(InputError, match="c-header"):
+    with pytest.raises(ValueError, match="c-header, matlab, magneto, json") as info:
         export(cal, "excel")
+    assert "\n" not in str(info.value) and "'excel'" in str(info.value)

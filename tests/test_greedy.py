@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import fieldcal
+from fieldcal.geometry.rotations import quaternion_to_matrix
 from fieldcal.methods import greedy
 from fieldcal.methods.gls import (
     accel_bias_field_design,
@@ -16,7 +17,6 @@ from fieldcal.methods.gls import (
     symmetric_from_vector,
 )
 from fieldcal.metrics import reconstruction_error
-from fieldcal.geometry.rotations import quaternion_to_matrix
 
 SEED = 0  # a Table 1 session the greedy method converges on in 90 iterations
 

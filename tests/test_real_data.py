@@ -135,7 +135,10 @@ def test_icm20948_session3_joint_with_mag_axes(shared_data, tmp_path):
     cal = fieldcal.Calibration.from_json((tmp_path / "cal.json").read_text())
     print(f"icm20948 session 3: {len(doc['poses'])} poses, dip {cal.dip_deg:.2f}°")
     assert len(doc["poses"]) >= 10
-    assert abs(cal.dip_deg - 67.0) < 1.5  # the README's ~157° acc-mag angle, i.e. ~67° dip
+    # the README's ~157° acc-mag angle, i.e. ~67° dip; with the poses the robust fit keeps the
+    # dip is known to its standard error (about 3° from 11 hand-held poses)
+    assert abs(cal.dip_deg - 67.0) < max(1.5, 2.5 * cal.dip_std_deg)
+    assert cal.verdict.level in ("pass", "warn")
     # the calibration applies to the raw columns as logged (the axis map is folded in)
     log = load_log(path)
     a = np.array(

@@ -13,11 +13,11 @@ import json
 import numpy as np
 import pytest
 
-from fieldcal.simulation.continuous import simulate_continuous
 from fieldcal.errors import InputError
 from fieldcal.logs.io import load_log
-from fieldcal.pipeline import poses_from_log
 from fieldcal.logs.stillness import detect_still, moving_variance
+from fieldcal.pipeline import poses_from_log
+from fieldcal.simulation.continuous import simulate_continuous
 
 
 def _accel_gyro(log):

@@ -30,7 +30,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._frozen import ArrayDataclass, frozen_array
 from ._version import __version__
-from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
 from .geometry.frames import (
     dip_of,
     misalignment_angle_deg,
@@ -39,6 +38,7 @@ from .geometry.frames import (
     orthogonal_polar_factor,
     twin_flip,
 )
+from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
 
 __all__ = [
     "SENSORS",
@@ -343,7 +343,9 @@ class Calibration(ArrayDataclass):
     rejected: tuple[RejectedPose, ...] = ()
     accuracy: Accuracy | None = None
     units: dict[str, str] = field(default_factory=dict, repr=False)
-    version: str = field(default="", compare=False, repr=False, metadata={"key": "fieldcal_version"})
+    version: str = field(
+        default="", compare=False, repr=False, metadata={"key": "fieldcal_version"}
+    )
     created: str = field(default="", compare=False, repr=False)
 
     JSON_DERIVED = (
@@ -447,9 +449,7 @@ class Calibration(ArrayDataclass):
         if not all(n in self.covariance.names for n in names):
             return None
         Ka, Km = self.accel.gain, self.mag.gain
-        S = nearest_signed_permutation(
-            orthogonal_polar_factor(Km) @ orthogonal_polar_factor(Ka).T
-        )
+        S = nearest_signed_permutation(orthogonal_polar_factor(Km) @ orthogonal_polar_factor(Ka).T)
         h = 1e-6 * max(float(np.abs(Ka).max()), float(np.abs(Km).max()))
         steps = (np.eye(9) * h).reshape(9, 3, 3)
         Kas = np.concatenate([Ka[None], Ka + steps, np.broadcast_to(Ka, (9, 3, 3))])
@@ -604,7 +604,9 @@ class Calibration(ArrayDataclass):
         """Refuse values no correction can use: non-finite or singular gains, non-finite
         biases, reference fields or rotations. One-line ``ValueError`` naming the first."""
         if self.accel is None and self.mag is None:
-            raise ValueError("invalid calibration: it has neither an accelerometer nor a magnetometer")
+            raise ValueError(
+                "invalid calibration: it has neither an accelerometer nor a magnetometer"
+            )
         for name in SENSORS:
             sensor = getattr(self, name)
             if sensor is None:
@@ -636,7 +638,9 @@ CONVENTIONS = {
 }
 
 
-def _sensor_block(covariance: ParameterCovariance | None, sensor: str) -> ParameterCovariance | None:
+def _sensor_block(
+    covariance: ParameterCovariance | None, sensor: str
+) -> ParameterCovariance | None:
     """The gain and bias block of one sensor, names without the sensor prefix."""
     if covariance is None:
         return None

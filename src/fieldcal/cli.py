@@ -1,29 +1,76 @@
 """The ``fieldcal`` command: calibrate a log, apply and export the result, simulate, report, demo.
 
-Every mistake in the user's input (file, columns, options, too few or degenerate poses) ends in
-a one-line ``Error: ...`` on stderr and exit code 2, never a traceback.
+Commands only: parse the options, call the library, print, choose the exit code.
+
+Exit codes: 0 success; 2 a mistake in the user's input (file, columns, options, too few or
+degenerate poses), reported as one ``Error: ...`` line on stderr, never a traceback; 3 the
+calibration's verdict is ``fail`` (every requested file is still written).
+
+Startup: ``fieldcal --version`` and ``--help`` load numpy, click and fieldcal's light modules
+only. Rich, the pipeline and the output modules load inside the commands, through
+:func:`_lazy`; SciPy and matplotlib load when a calibration or a report first needs them.
 """
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
+import inspect
 import json
 import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
-from rich.console import Console
 
 from . import __version__
+from .api import calibrate as _calibrate
+from .calibration import Calibration
 from .errors import InputError
+from .methods import METHODS
+from .metrics import reconstruction_error
+from .output import exports
+from .simulation.session import Session
+from .simulation.session import simulate as simulate_session
 
-__all__ = ["cli", "main"]
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from .logs.io import Log
+    from .pipeline import PoseSet
+
+__all__ = ["EXIT_FAIL", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
+
+#: Exit codes: success; a mistake in the input or options; a calibration whose verdict is fail.
+EXIT_OK, EXIT_USAGE, EXIT_FAIL = 0, 2, 3
 
 _USER_ERRORS = (InputError, ValueError, OSError, np.linalg.LinAlgError)
+#: The calibration file ``calibrate`` writes when neither ``-o`` nor ``--json`` is given.
+_DEFAULT_OUTPUT = "cal.json"
+#: The library's default method: the command line has no default of its own.
+_DEFAULT_METHOD = inspect.signature(_calibrate).parameters["method"].default
+
+
+def _lazy(name: str) -> ModuleType:
+    """Import ``name`` (``".pipeline"`` is fieldcal's) when a command first needs it.
+
+    The one place that imports lazily: rich, the pipeline and the summary would add about
+    40 % to the import time of ``--version`` and ``--help``, which need none of them; the
+    report brings matplotlib.
+    """
+    return importlib.import_module(name, __package__)
+
+
+def _console(*, stderr: bool = False) -> Console:
+    """The console every command prints through: user text (paths, column names, labels,
+    reasons) is printed literally, never read as markup or emoji codes."""
+    console: type[Console] = _lazy("rich.console").Console
+    return console(stderr=stderr, markup=False, emoji=False, highlight=False, soft_wrap=True)
 
 
 class _Group(click.Group):
@@ -37,7 +84,7 @@ class _Group(click.Group):
             if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in message:
                 message = f"{exc.filename}: {message}"
             click.echo(f"Error: {message}", err=True)
-            ctx.exit(2)
+            ctx.exit(EXIT_USAGE)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -55,17 +102,54 @@ def main() -> None:
 
 
 # ----------------------------------------------------------------------------- helpers
-def _console(quiet: bool = False) -> Console:
-    return Console(quiet=quiet, highlight=False, soft_wrap=True)
-
-
-def _read_cal(path: str) -> Any:
-    from .calibration import Calibration
-
+def _read_cal(path: str) -> Calibration:
     file = Path(path)
     if not file.is_file():
         raise InputError(f"{path}: no such calibration file; write one with `fieldcal calibrate`")
     return Calibration.from_json(file.read_text(encoding="utf-8"))
+
+
+def _finish(cal: Calibration, *, summary_shown: bool) -> None:
+    """Exit with code 3 when the verdict is fail; say why on stderr if the summary did not."""
+    if cal.verdict is None or cal.verdict.level != "fail":
+        return
+    if not summary_shown:
+        _lazy(".output.summary").print_verdict(_console(stderr=True), cal)
+    click.get_current_context().exit(EXIT_FAIL)
+
+
+def _pose_noise_value(text: str, spec: str) -> str | float:
+    word = text.strip().lower()
+    if word in ("auto", "none"):
+        return word
+    try:
+        value = float(word)
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value >= 0):
+        raise InputError(
+            f"--pose-noise {spec!r} is not understood; give auto (estimate it), none (zero), a "
+            "standard deviation in raw units (e.g. 0.01), or per sensor, e.g. accel=0.01,mag=0.2"
+        )
+    return value
+
+
+def _parse_pose_noise(spec: str) -> str | float | dict[str, str | float]:
+    """``auto``, ``none``, a number, or ``accel=0.01,mag=auto`` as :func:`fieldcal.calibrate`
+    takes it (a sensor not named is estimated)."""
+    if "=" not in spec:
+        return _pose_noise_value(spec, spec)
+    out: dict[str, str | float] = {}
+    for part in spec.split(","):
+        key, _, value = part.partition("=")
+        key = key.strip().lower()
+        if key not in ("accel", "mag"):
+            raise InputError(
+                f"--pose-noise {spec!r}: {key!r} is not a sensor; name accel and/or mag, e.g. "
+                "accel=0.01,mag=0.2"
+            )
+        out[key] = _pose_noise_value(value, spec)
+    return out
 
 
 def _log_options(f: Any) -> Any:
@@ -107,33 +191,30 @@ def _detect_options(f: Any) -> Any:
     return f
 
 
-def _load(
-    log: str,
-    accel_cols: Any,
-    mag_cols: Any,
-    gyro_cols: Any,
-    time_col: Any,
-    pose_col: Any,
-    drop_nan: bool,
-) -> Any:
-    from .logs.io import load_log
-
-    return load_log(
+def _load(log: str, cols: dict[str, Any]) -> Log:
+    """The log, its columns as the ``_log_options`` give them (popped from ``cols``)."""
+    load_log = _lazy(".logs.io").load_log
+    loaded: Log = load_log(
         log,
-        accel_cols=accel_cols,
-        mag_cols=mag_cols,
-        gyro_cols=gyro_cols,
-        time_col=time_col,
-        pose_col=pose_col,
-        drop_nan=drop_nan,
+        accel_cols=cols.pop("accel_cols"),
+        mag_cols=cols.pop("mag_cols"),
+        gyro_cols=cols.pop("gyro_cols"),
+        time_col=cols.pop("time_col"),
+        pose_col=cols.pop("pose_col"),
+        drop_nan=cols.pop("drop_nan"),
     )
+    return loaded
 
 
-def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str, Any], list[str]]:
-    """Poses, calibration and the JSON document for a loaded log."""
-    from .logs.io import parse_axes
-    from .pipeline import calibrate_log, document, parse_noise, poses_from_log
+def _run_calibration(
+    log: Log, opts: dict[str, Any]
+) -> tuple[Calibration, PoseSet, dict[str, Any], list[str]]:
+    """Poses, calibration, the JSON document and the notes on the input for a loaded log.
 
+    ``opts`` holds the ``calibrate`` command's options (``pose_noise`` parsed); any left out
+    take the library's defaults (the method, robust fitting, estimated pose-level noise).
+    """
+    io, pipeline = _lazy(".logs.io"), _lazy(".pipeline")
     notes = [
         "columns used: "
         + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
@@ -145,13 +226,13 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
     if opts.get("mag_axes"):
         if log.mag is None:
             raise InputError("--mag-axes given but the log has no magnetometer columns")
-        P = parse_axes(opts["mag_axes"])
+        P = io.parse_axes(opts["mag_axes"])
         log.mag = log.mag @ P.T
         notes.append(
             f"magnetometer axes mapped {opts['mag_axes']} for the fit and folded back into its "
             "gain: apply the result to the raw columns as logged"
         )
-    poses = poses_from_log(
+    poses: PoseSet = pipeline.poses_from_log(
         log,
         rate=opts.get("rate"),
         window=opts.get("window"),
@@ -166,40 +247,71 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
     )
     distinct = len({e["orientation"] for e in poses.entries})
     notes.append(f"{poses.n} poses {how} ({distinct} distinct orientations)")
+    choices: dict[str, Any] = {}
+    if opts.get("method"):
+        choices["method"] = opts["method"]
+    if opts.get("pose_noise") is not None:
+        choices["pose_noise"] = opts["pose_noise"]
+    if opts.get("no_robust"):
+        # trimming bumps inside a pose is part of the robust fit: off together
+        choices.update(robust=False, trim=False)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        cal = calibrate_log(
+        cal: Calibration = pipeline.calibrate_log(
             log,
             poses,
-            method=opts.get("method", "mle"),
             gravity=opts.get("gravity"),
             field_strength=opts.get("field_strength"),
-            noise=parse_noise(opts.get("noise")),
+            noise=pipeline.parse_noise(opts.get("noise")),
             mag_axes=opts.get("mag_axes"),
             P=P,
             mag_mirrored=bool(opts.get("mag_mirrored")),
+            **choices,
         )
-    # the library's warnings (an implausible fit, ...) belong in the summary, not as tracebacks
+    # the library's warnings belong in the summary, not as tracebacks
     notes += [f"warning: {' '.join(str(w.message).split())}" for w in caught]
-    return cal, poses, document(cal, poses), notes
+    return cal, poses, pipeline.document(cal, poses), notes
+
+
+def _write_json(path: str | Path, doc: dict[str, Any]) -> None:
+    Path(path).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
 # ----------------------------------------------------------------------------- calibrate
 @cli.command()
 @click.argument("log", type=click.Path())
-@click.option("-o", "--output", default="cal.json", show_default=True, help="Calibration JSON.")
+@click.option(
+    "-o",
+    "--output",
+    help=f"Calibration JSON to write. [default: {_DEFAULT_OUTPUT}; with --json, only when given]",
+)
 @click.option(
     "--method",
-    type=click.Choice(["mle", "greedy", "ellipsoid"]),
-    default="mle",
+    type=click.Choice(list(METHODS)),
+    default=_DEFAULT_METHOD,
     show_default=True,
-    help="Calibration method.",
+    help="Calibration method: "
+    + "; ".join(f"{m.name}, {m.summary}" for m in METHODS.values())
+    + ".",
 )
 @click.option("--gravity", type=float, help="|g| for calibrated accel units (e.g. 9.80665).")
 @click.option("--field-strength", type=float, help="|h| for calibrated mag units (e.g. 48.5).")
 @click.option(
     "--noise",
     help="Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
+)
+@click.option(
+    "--pose-noise",
+    default="auto",
+    show_default=True,
+    help="Pose-level noise std of each pose mean, raw units: auto (estimated), none (zero, the "
+    "seed paper's model), one value, or accel=0.01,mag=0.2.",
+)
+@click.option(
+    "--no-robust",
+    is_flag=True,
+    help="Keep every pose and every sample: no rejection of disturbed poses, no trimming of "
+    "bumps inside a pose.",
 )
 @click.option("--mag-axes", help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.")
 @click.option(
@@ -210,29 +322,33 @@ def _run_calibration(log: Any, opts: dict[str, Any]) -> tuple[Any, Any, dict[str
 )
 @_log_options
 @_detect_options
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON instead.")
-@click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
-def calibrate(log: str, output: str, as_json: bool, quiet: bool, **opts: Any) -> None:
-    """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON."""
-    data = _load(
-        log,
-        opts.pop("accel_cols"),
-        opts.pop("mag_cols"),
-        opts.pop("gyro_cols"),
-        opts.pop("time_col"),
-        opts.pop("pose_col"),
-        opts.pop("drop_nan"),
-    )
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the result as JSON instead of the summary (writes a file only with -o).",
+)
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and a fail verdict.")
+def calibrate(log: str, output: str | None, as_json: bool, quiet: bool, **opts: Any) -> None:
+    """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON.
+
+    The verdict (PASS, WARN or FAIL, with reasons) comes first. Exit code 3 when it is FAIL;
+    the JSON is written all the same.
+    """
+    opts["pose_noise"] = _parse_pose_noise(opts["pose_noise"])  # before the slow part
+    data = _load(log, opts)
     cal, _, doc, notes = _run_calibration(data, opts)
-    Path(output).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    if output is None and not as_json:
+        output = _DEFAULT_OUTPUT
+    if output is not None:
+        _write_json(output, doc)
     if as_json:
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif not quiet:
-        from .output.summary import print_summary
-
         console = _console()
-        print_summary(console, cal, doc, notes)
+        _lazy(".output.summary").print_summary(console, cal, doc, notes)
         console.print(f"wrote {output}")
+    _finish(cal, summary_shown=not (as_json or quiet))
 
 
 # ----------------------------------------------------------------------------- apply
@@ -244,35 +360,37 @@ def calibrate(log: str, output: str, as_json: bool, quiet: bool, **opts: Any) ->
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 def apply(
-    cal_json: str, log: str, output: str, accel_cols: Any, mag_cols: Any, quiet: bool
+    cal_json: str, log: str, output: str, accel_cols: str | None, mag_cols: str | None, quiet: bool
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG; large CSV files are streamed."""
-    from .logs.io import apply_to_file
-
     cal = _read_cal(cal_json)
-    used = apply_to_file(cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols)
+    used = _lazy(".logs.io").apply_to_file(
+        cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols
+    )
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
         _console().print(f"calibrated {cols} -> {output}")
 
 
 # ----------------------------------------------------------------------------- export
+_SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values())
+
+
 @cli.command()
 @click.argument("cal_json", type=click.Path())
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["c-header", "matlab", "magneto", "json"]),
-    default="c-header",
-    show_default=True,
-    help="Target convention.",
+    type=click.Choice(list(exports.FORMATS)),
+    help=f"Target convention. [default: from -o's suffix ({_SUFFIXES}), else {exports.DEFAULT}]",
 )
 @click.option("-o", "--output", help="Write to this file instead of stdout.")
-def export(cal_json: str, fmt: str, output: str | None) -> None:
+def export(cal_json: str, fmt: str | None, output: str | None) -> None:
     """Write the calibration for firmware or another tool, its convention stated in the text."""
-    from .output.exports import export as render
-
-    text = render(_read_cal(cal_json), fmt)
+    if fmt is None:
+        by_suffix = exports.for_path(output) if output else None
+        fmt = by_suffix.name if by_suffix else exports.DEFAULT
+    text = exports.export(_read_cal(cal_json), fmt)
     if output:
         Path(output).write_text(text if text.endswith("\n") else text + "\n", encoding="utf-8")
     else:
@@ -302,18 +420,17 @@ def simulate(
     rate: float,
 ) -> None:
     """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
-    from .simulation.continuous import simulate_continuous
-    from .simulation.session import simulate as draw
-
     extra: dict[str, Any] = {"n_poses": poses} if poses else {}
     if handheld:
         extra["pose_distribution"] = "handheld"
     if continuous:
-        log = simulate_continuous(preset, seed=seed, rate=rate, **extra)
+        log = _lazy(".simulation.continuous").simulate_continuous(
+            preset, seed=seed, rate=rate, **extra
+        )
         log.write_csv(output)
-        session = log.session
+        session: Session = log.session
     else:
-        session = draw(preset, seed=seed, **extra)
+        session = simulate_session(preset, seed=seed, **extra)
         counts = session.counts
         data = np.column_stack(
             [
@@ -344,29 +461,17 @@ def simulate(
 @_log_options
 def report(cal_json: str, log: str, output: str, png_dir: str | None, **cols: Any) -> None:
     """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
-    from .output.report import write_report
-
     cal = _read_cal(cal_json)
-    data = _load(
-        log,
-        cols["accel_cols"],
-        cols["mag_cols"],
-        cols["gyro_cols"],
-        cols["time_col"],
-        cols["pose_col"],
-        cols["drop_nan"],
-    )
-    write_report(cal, data, output, png_dir=png_dir)
+    data = _load(log, cols)
+    _lazy(".output.report").write_report(cal, data, output, png_dir=png_dir)
     click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
 
 
 # ----------------------------------------------------------------------------- demo
-def _deltas(session: Any, cal: Any, n_found: int) -> dict[str, float | None]:
+def _deltas(session: Session, cal: Calibration, n_found: int) -> dict[str, float | None]:
     """δ of Eq. 19 per sensor, when the poses found are the simulated ones."""
-    from .metrics import reconstruction_error
-
     truth = session.truth
-    if n_found != truth.n_poses:
+    if n_found != truth.n_poses or truth.accel is None or truth.mag is None:
         return {"accel": None, "mag": None}
     true_a, true_m = truth.predicted_means()
     est_a, est_m = cal.predicted_means()
@@ -383,15 +488,13 @@ def _deltas(session: Any, cal: Any, n_found: int) -> dict[str, float | None]:
 @click.option("--no-report", is_flag=True, help="Skip the HTML report.")
 def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
     """Simulate a Table 1 session as a continuous log, find its poses, calibrate, compare."""
-    from .simulation.continuous import simulate_continuous
-    from .logs.io import load_log
-    from .output.summary import print_summary, print_truth_comparison
-
+    load_log = _lazy(".logs.io").load_log
+    summary = _lazy(".output.summary")
     console = _console()
     started = time.perf_counter()
     folder = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="fieldcal-demo-"))
     folder.mkdir(parents=True, exist_ok=True)
-    sim = simulate_continuous("paper", seed=seed)
+    sim = _lazy(".simulation.continuous").simulate_continuous("paper", seed=seed)
     log_path = folder / "session.csv"
     sim.write_csv(str(log_path))
     console.print(
@@ -399,24 +502,21 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
         f"{sim.session.truth.n_poses} poses, "
         f"{len(sim.columns['t'])} samples at {sim.rate:g} Hz -> {log_path}"
     )
-    log = load_log(log_path)
-    cal, poses, doc, notes = _run_calibration(log, {"method": "mle"})
-    (folder / "cal.json").write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    print_summary(console, cal, doc, notes)
-    print_truth_comparison(console, sim.session.truth, cal, _deltas(sim.session, cal, poses.n))
-    if not no_report:
-        try:
-            import matplotlib  # noqa: F401
-        except ImportError:
-            console.print(
-                "matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')"
-            )
-        else:
-            from .output.report import write_report
-
-            write_report(cal, load_log(log_path), folder / "report.html")
-            console.print(f"report: {folder / 'report.html'}")
+    cal, poses, doc, notes = _run_calibration(load_log(log_path), {})
+    _write_json(folder / "cal.json", doc)
+    summary.print_summary(console, cal, doc, notes)
+    summary.print_truth_comparison(
+        console, sim.session.truth, cal, _deltas(sim.session, cal, poses.n)
+    )
+    if not no_report and importlib.util.find_spec("matplotlib") is None:
+        console.print(
+            "matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')"
+        )
+    elif not no_report:
+        _lazy(".output.report").write_report(cal, load_log(log_path), folder / "report.html")
+        console.print(f"report: {folder / 'report.html'}")
     console.print(f"done in {time.perf_counter() - started:.1f} s; files in {folder}")
+    _finish(cal, summary_shown=True)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -11,12 +11,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .api import calibrate
-from .methods import get as get_method
-from .stats.poses import check_spread, stats_from_means
+from .calibration import Calibration
 from .errors import InputError
 from .logs.io import Log
-from .calibration import Calibration
 from .logs.stillness import StillResult, detect_still
+from .methods import get as get_method
+from .stats.poses import check_spread, stats_from_means
 
 __all__ = ["PoseSet", "calibrate_log", "document", "fold_axes", "parse_noise", "poses_from_log"]
 

@@ -326,7 +326,9 @@ def _family_design(y: Array, weights: Array) -> tuple[Array, Array, float, Array
     return z, c0, s0, np.sqrt(weights / wsum)[:, None]
 
 
-def family_fit(y: ArrayLike, weights: ArrayLike, family: str = "full") -> tuple[Array, Array] | None:
+def family_fit(
+    y: ArrayLike, weights: ArrayLike, family: str = "full"
+) -> tuple[Array, Array] | None:
     """Weighted algebraic ellipsoid of a family: ``"full"`` (9 parameters), ``"axes"``
     (axis-aligned) or ``"sphere"``.
 

@@ -26,7 +26,6 @@ fieldcal's gauge (:func:`fieldcal.model.canonical_gauge`). With ``a = (0, 0, −
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -37,6 +36,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from ..calibration import Calibration, SensorCalibration
+from ..geometry.alignment import constant_angle
+from ..geometry.frames import GRAVITY, magnetic_reference
+from ..geometry.gauge import canonical_gauge
 from ..geometry.quadrics import (
     Quadric,
     algebraic_fit,
@@ -44,12 +47,13 @@ from ..geometry.quadrics import (
     li_griffiths_fit,
     reverse_triangular_factor,
 )
-from ..calibration import Calibration, SensorCalibration
-from ..geometry.alignment import constant_angle
-from ..geometry.frames import GRAVITY, magnetic_reference
-from ..geometry.gauge import canonical_gauge
+from ..geometry.rotations import (
+    exp_so3,
+    quaternion_to_matrix,
+    rotation_angle_deg,
+    wahba,
+)
 from ..stats.poses import PoseStats
-from ..geometry.rotations import exp_so3, project_to_so3, quaternion_to_matrix, rotation_angle_deg, wahba
 
 __all__ = [
     "MIN_POSES",
@@ -73,7 +77,6 @@ MIN_SAMPLES = 10
 #: Pose input: 9 free parameters need 9 distinct orientations; fewer poses leave the fit
 #: determined by the noise alone.
 MIN_POSES = 9
-
 
 
 class NotAnEllipsoidWarning(RuntimeWarning):
@@ -698,9 +701,7 @@ def fit(
         "body_frame": body_frame,
         "input": "continuous" if stats is None else "poses",
     }
-    return _calibration(
-        stats, fits, alignment, inputs.samples, body_frame, options_used
-    )
+    return _calibration(stats, fits, alignment, inputs.samples, body_frame, options_used)
 
 
 def _sensor_fit(x: Array, faithful: bool, name: str, weights: Array | None) -> EllipsoidFit:
@@ -780,9 +781,7 @@ def _calibration(
     for name, sensor_fit in fits.items():
         if sensor_fit is not None:
             sensor_stats = None if stats is None else getattr(stats, name)
-            noise[name], sources[name] = _noise(
-                sensor_stats, samples[name], sensor_fit
-            )
+            noise[name], sources[name] = _noise(sensor_stats, samples[name], sensor_fit)
     rotations = (
         np.zeros((0, 3, 3)) if stats is None else _pose_rotations(stats, fits, maps, noise, fields)
     )

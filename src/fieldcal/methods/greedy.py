@@ -24,7 +24,6 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,8 +31,8 @@ from numpy.typing import NDArray
 from ..calibration import Calibration, SensorCalibration
 from ..geometry.frames import HALF_TURN_NORTH
 from ..geometry.gauge import canonical_gauge
-from ..stats.poses import PoseStats
 from ..geometry.rotations import quaternion_to_matrix
+from ..stats.poses import PoseStats
 from .gls import (
     accel_bias_field_design,
     accel_gain_design,
@@ -456,7 +455,10 @@ def _check(
             raise ValueError(f"{label} must be a positive number, got {value!r}")
         if not np.isfinite(value):
             raise ValueError(f"{label} must be finite, got {value!r}")
-    for label, count in (("max_iterations", max_iterations), ("rotation_max_iterations", rotation_max)):
+    for label, count in (
+        ("max_iterations", max_iterations),
+        ("rotation_max_iterations", rotation_max),
+    ):
         if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
             raise ValueError(f"{label} must be a whole number of at least 1, got {count!r}")
 

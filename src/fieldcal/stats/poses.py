@@ -47,6 +47,9 @@ class SensorStats(ArrayDataclass):
         ``q²``: variance per axis of the pose-level error of each mean, ``Q = q² I``.
     trimmed : (N,) int array or None
         Samples cut per pose as not still (:mod:`fieldcal.stats.trimming`), when trimmed.
+    scatter : (N,) array or None
+        Each pose's own within-pose variance per axis (trace of its scatter / 3Δ_i): a pose
+        whose readings swing (the device turned) stands out from the rest.
     """
 
     means: Array
@@ -55,6 +58,7 @@ class SensorStats(ArrayDataclass):
     dof: int
     pose_var: float = 0.0
     trimmed: NDArray[np.int64] | None = None
+    scatter: Array | None = None
 
     @property
     def n_poses(self) -> int:
@@ -75,9 +79,12 @@ class SensorStats(ArrayDataclass):
     def subset(self, index: ArrayLike) -> SensorStats:
         """Statistics of a subset of poses, keeping the pooled covariance as it is."""
         index = np.asarray(index)
-        trimmed = None if self.trimmed is None else self.trimmed[index]
         return dataclasses.replace(
-            self, means=self.means[index], counts=self.counts[index], trimmed=trimmed
+            self,
+            means=self.means[index],
+            counts=self.counts[index],
+            trimmed=None if self.trimmed is None else self.trimmed[index],
+            scatter=None if self.scatter is None else self.scatter[index],
         )
 
 
@@ -193,9 +200,15 @@ def _sensor_stats(stacked: Array, counts: NDArray[np.int64], trim: bool) -> Sens
     dof = int(counts.sum() - len(counts))
     if dof <= 0:
         return SensorStats(means, counts, None, dof, trimmed=trimmed)
+    squares = np.add.reduceat(np.einsum("ij,ij->i", stacked, stacked), starts)
+    per_pose = (squares - counts * np.einsum("ij,ij->i", shifted_means, shifted_means)) / (
+        3.0 * counts
+    )
     scatter = stacked.T @ stacked - sums.T @ shifted_means
     cov = scatter / dof  # Eq. 7
-    return SensorStats(means, counts, 0.5 * (cov + cov.T), dof, trimmed=trimmed)
+    return SensorStats(
+        means, counts, 0.5 * (cov + cov.T), dof, trimmed=trimmed, scatter=np.maximum(per_pose, 0)
+    )
 
 
 def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseStats:

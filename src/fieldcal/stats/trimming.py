@@ -24,7 +24,9 @@ CUT = 25.9
 MIN_SAMPLES = 10
 
 
-def trim_unsteady(stacked: Array, counts: NDArray[np.int64]) -> tuple[Array, NDArray[np.int64], NDArray[np.int64]]:
+def trim_unsteady(
+    stacked: Array, counts: NDArray[np.int64]
+) -> tuple[Array, NDArray[np.int64], NDArray[np.int64]]:
     """Cut unsteady samples from concatenated poses.
 
     Parameters

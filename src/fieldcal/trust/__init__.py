@@ -1,1 +1,2 @@
-"""Whether to trust a calibration: certificate, pose-level noise, rejected poses, verdict, accuracy."""
+"""Whether to trust a calibration: certificate, pose-level noise, rejected poses, verdict,
+accuracy."""

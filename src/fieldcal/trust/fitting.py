@@ -84,7 +84,9 @@ class _Runner:
         self.options = options
         self.mle = METHODS["mle"]
 
-    def method_fit(self, stats: PoseStats, keep: NDArray[np.int64], previous: Calibration | None) -> Calibration:
+    def method_fit(
+        self, stats: PoseStats, keep: NDArray[np.int64], previous: Calibration | None
+    ) -> Calibration:
         kwargs = dict(self.options)
         if previous is not None and self.method.warm_start and "initial" not in kwargs:
             kwargs["initial"] = previous
@@ -101,7 +103,8 @@ class _Runner:
         return stats.n_poses >= self.mle.min_poses_for(len(stats.sensors))
 
     def ml_refit(self, stats: PoseStats, previous: Calibration) -> Calibration:
-        """The ML fit from ``previous`` under ``stats``' noise model (the trust path's yardstick)."""
+        """The ML fit from ``previous`` under ``stats``' noise model (the trust path's
+        yardstick)."""
         fit = self.fit if self.method.pose_weights else self.mle.load()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the method's own fit already warned
@@ -187,7 +190,7 @@ def fit_trusted(
         if len(keep) - 1 < min_keep:
             left = int(flagged.sum())
             break
-        kind = tests.kind(worst, alpha)
+        kind, why = tests.kind(worst, alpha, current)
         column = int(np.argmin(tests.p_value[worst]))
         rejected.append(
             RejectedPose(
@@ -195,7 +198,7 @@ def fit_trusted(
                 sensor=kind,
                 statistic=float(tests.statistic[worst, column]),
                 p_value=float(tests.p_value[worst, column]),
-                reason=REASONS[kind],
+                reason=REASONS[why],
             )
         )
         if on_progress is not None:
@@ -212,8 +215,8 @@ def fit_trusted(
     )
     # the handedness is a choice of gauge: make it before the verdict reads the dip
     result = result.with_mag_handedness(mag_mirrored)
-    verdict = judge(result, current, found)
-    return dataclasses.replace(result, verdict=verdict, accuracy=predict_accuracy(result))
+    result = dataclasses.replace(result, accuracy=predict_accuracy(result))
+    return dataclasses.replace(result, verdict=judge(result, current, found))
 
 
 def _finish(

@@ -9,11 +9,14 @@ magnetometer's), so the test uses the ``r`` directions the fit leaves at least
 
     t_si = Σ_k (v_kᵀ e_si)² / λ_k  ~  χ²(r),    I − H_ii,ss = Σ_k λ_k v_k v_kᵀ.
 
-The whitening uses the pose-level variance estimated *without* pose ``i`` (externally
-studentised, as in regression diagnostics), so one disturbed pose cannot hide by inflating
-``q²`` for everyone. With ``q²`` estimated from ``ν`` degrees of freedom, ``t/r`` follows
-``F(r, ν_eff)`` with ``ν_eff = ν / w²`` (Satterthwaite; ``w`` is the estimated variance's share
-of the pose mean's variance, so ``ν_eff → ∞`` and the χ² law when nothing was estimated).
+When the pose-level variance was estimated, the statistic is externally studentised, as in
+regression diagnostics: deleting pose ``i`` lowers the sensor's cost by exactly ``t_si`` and its
+degrees of freedom by ``r`` (linear model), so the variance estimated without the pose is
+``(J_s − t_si)/(ν_s − r)`` of the current one, and ``t`` is divided by that (for the estimated
+share ``w`` of the pose mean's variance only). One disturbed pose can then not hide by inflating
+``q²`` for everyone, nor by dragging the fit so that every pose's residual grows. ``t/r``
+follows ``F(r, ν_eff)`` with ``ν_eff = (ν_s − r) / w²`` (Satterthwaite; ``ν_eff → ∞`` and the
+χ²(r) law when nothing was estimated).
 
 Decision. A pose is flagged when a sensor's p-value is below ``α / (N · #sensors)``
 (Bonferroni: family-wise false-alarm rate ``α`` per calibration, 1 % by default). A
@@ -31,9 +34,9 @@ from scipy.special import fdtrc
 
 from ..stats.poses import PoseStats
 from .evaluate import Evaluation
-from .pose_noise import PoseNoise, whitened_terms
+from .pose_noise import PoseNoise
 
-__all__ = ["PoseTests", "REASONS", "pose_tests"]
+__all__ = ["REASONS", "PoseTests", "pose_tests"]
 
 Array = NDArray[np.float64]
 
@@ -45,9 +48,12 @@ REASONS = {
     "device still against a fixed support",
     "both": "moved or bumped: both sensors disagree with every other pose; hold the device "
     "still against a fixed support",
+    "turned": "moved during the pose: the magnetometer's readings swing within it while the "
+    "accelerometer's stay (a turn about the vertical); hold the device still",
 }
 
-_GRID = 96
+#: A pose whose own scatter exceeds this multiple of the typical pose's moved within it.
+SWING = 10.0
 
 
 @dataclass(frozen=True)
@@ -63,39 +69,19 @@ class PoseTests:
         n, k = self.p_value.shape
         return np.asarray(np.any(self.p_value < alpha / (n * k), axis=1))
 
-    def kind(self, i: int, alpha: float) -> str:
-        """``"mag"``, ``"accel"`` or ``"both"``: which sensors fail in pose ``i``."""
+    def kind(self, i: int, alpha: float, stats: PoseStats) -> tuple[str, str]:
+        """Which sensors fail in pose ``i`` (``"mag"``, ``"accel"`` or ``"both"``) and the
+        reason's key in :data:`REASONS`: a failing magnetometer whose readings swung within the
+        pose turned with the device, otherwise it met a disturbed field."""
         n, k = self.p_value.shape
         failing = [s for j, s in enumerate(self.sensors) if self.p_value[i, j] < alpha / (n * k)]
         if len(failing) == 2:
-            return "both"
-        return failing[0] if failing else self.sensors[int(np.argmin(self.p_value[i]))]
-
-
-def _external_variance(proj: Array, lam: Array, target: Array, q2_all: float) -> Array:
-    """Per pose ``i``, the ``q²`` solving ``Σ_{k≠i} proj_k/(lam_k + q²) = target_i``.
-
-    Evaluated on a log grid around the joint estimate (``J`` without pose ``i`` is ``J`` minus
-    pose ``i``'s own term), then the root interpolated in ``log q²`` between grid points.
-    """
-    n = proj.shape[0]
-    scale = max(q2_all, float(np.median(np.sum(proj, axis=1))) / 3.0, 1e-300)
-    grid = scale * np.logspace(-8, 3, _GRID)
-    terms = np.einsum("ij,gij->gi", proj, 1.0 / (lam[None] + grid[:, None, None]))  # (G, N)
-    without = terms.sum(axis=1)[:, None] - terms  # (G, N): J_(−i)(q²) on the grid
-    below = without <= target[None, :]
-    first = np.where(below.any(axis=0), below.argmax(axis=0), _GRID - 1)
-    out = np.zeros(n)
-    positive = np.all(lam > 0)
-    for i in range(n):  # N scalar interpolations; the heavy part above is vectorised
-        g = first[i]
-        if g == 0:
-            out[i] = 0.0 if positive else grid[0]
-            continue
-        j0, j1 = without[g - 1, i], without[g, i]
-        t = (np.log(j0) - np.log(target[i])) / max(np.log(j0) - np.log(j1), 1e-300)
-        out[i] = float(np.exp(np.log(grid[g - 1]) + t * (np.log(grid[g]) - np.log(grid[g - 1]))))
-    return out
+            return "both", "both"
+        sensor = failing[0] if failing else self.sensors[int(np.argmin(self.p_value[i]))]
+        scatter = stats.sensor(sensor).scatter
+        if sensor == "mag" and scatter is not None and scatter[i] > SWING * np.median(scatter):
+            return "mag", "turned"
+        return sensor, sensor
 
 
 #: Residual directions whose variance the fit leaves below this share carry no test: the pose's
@@ -122,23 +108,28 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
     pval = np.ones((n, len(sensors)))
     for j, s in enumerate(sensors):
         block = ev.block(s)
-        H = lev[:, block, block]
-        sensor = stats.sensor(s)
-        raw = ev.raw[s]
-        if s in noise.estimated:
-            # whiten again with q² estimated without pose i
-            proj, lam = whitened_terms(sensor, raw)
-            target = shares[s] - (3.0 - np.einsum("nii->n", H))
-            q2 = _external_variance(proj, lam, np.maximum(target, 1e-9), noise.variance[s])
-            covs = sensor.with_pose_var(0.0).mean_covariances() + q2[:, None, None] * np.eye(3)
-            total = np.trace(sensor.mean_covariances(), axis1=1, axis2=2).mean() / 3.0
-            w = min(noise.variance[s] / total, 1.0) if total > 0 else 1.0
-            nu_eff = min(shares[s] / max(w * w, 1e-12), 1e7)
+        e = ev.whitened[:, block]
+        t, r = _studentised(e, np.eye(3) - lev[:, block, block])
+        w = _estimated_share(stats, noise, s)
+        if w > 0:
+            # delete pose i: J_s loses exactly t_i (linear model), the degrees of freedom r_i;
+            # only the estimated share w of each pose mean's variance rescales with it
+            J, nu = ev.sensor_cost(s), shares[s]
+            ratio = (J - t) / np.maximum(nu - r, 1.0) / max(J / nu, 1e-300)
+            scale = np.maximum(1.0 - w + w * np.maximum(ratio, 0.0), max(1.0 - w, 1e-6))
+            t = t / scale
+            nu_eff = np.minimum(np.maximum(nu - r, 1.0) / (w * w), 1e7)
         else:
-            covs = sensor.mean_covariances()
-            nu_eff = 1e7
-        e = np.linalg.solve(np.linalg.cholesky(covs), raw[:, :, None])[:, :, 0]
-        t, dof = _studentised(e, np.eye(3) - H)
+            nu_eff = np.full(n, 1e7)
         stat[:, j] = t
-        pval[:, j] = fdtrc(dof, nu_eff, np.maximum(t, 0.0) / dof)
+        pval[:, j] = fdtrc(r, nu_eff, np.maximum(t, 0.0) / r)
     return PoseTests(sensors, stat, pval)
+
+
+def _estimated_share(stats: PoseStats, noise: PoseNoise, sensor: str) -> float:
+    """The estimated pose-level variance's share of a pose mean's variance (0 when fixed)."""
+    if sensor not in noise.estimated or not noise.variance[sensor] > 0:
+        return 0.0
+    covs = stats.sensor(sensor).mean_covariances()
+    total = float(np.trace(covs, axis1=1, axis2=2).mean()) / 3.0
+    return min(noise.variance[sensor] / total, 1.0) if total > 0 else 1.0

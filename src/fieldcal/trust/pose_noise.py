@@ -36,7 +36,7 @@ from ..calibration import Calibration
 from ..stats.poses import PoseStats, SensorStats
 from .evaluate import Evaluation, evaluate
 
-__all__ = ["PoseNoise", "solve_pose_variance", "estimate"]
+__all__ = ["PoseNoise", "estimate", "solve_pose_variance"]
 
 Array = NDArray[np.float64]
 

@@ -54,6 +54,11 @@ RULES: dict[str, tuple[str, str]] = {
         "their noise; no rigid device at rest does that (pose labels mixing orientations, "
         "wrong columns, or motion): check the pose grouping and the columns",
     ),
+    "unusable": (
+        "fail",
+        "the calibration is too uncertain to use (predicted {what} error {value}); record more "
+        "poses, still and away from iron, covering every axis up and down",
+    ),
     "rejected": (
         "warn",
         "{count} pose(s) dropped as disturbed ({which}); see `rejected` for each and why",
@@ -84,13 +89,13 @@ RULES: dict[str, tuple[str, str]] = {
     "not_ml": (
         "warn",
         "the {method} estimate's likelihood is far below the optimum (J exceeds the maximum "
-        "likelihood fit's by {excess:.3g}, χ²({dof}) p = {p:.2g}); method='mle' would be more "
+        "likelihood fit's by {excess:.3g}, χ²({dof}) p = {p:.2g}); the mle method would be more "
         "accurate",
     ),
     "implausible": (
         "warn",
         "the fit is implausible under the stated noise (J = {cost:.4g} for χ²({dof}), p = "
-        "{p:.2g}); let fieldcal estimate the pose-level noise (pose_noise='auto')",
+        "{p:.2g}); let fieldcal estimate the pose-level noise (pose noise auto)",
     ),
 }
 
@@ -98,6 +103,8 @@ RULES: dict[str, tuple[str, str]] = {
 CONDITION_LIMIT = 1e10
 #: A pose-level error this many times the per-sample noise draws a warning.
 POSE_NOISE_RATIO = 3.0
+#: Predicted errors beyond which a calibration is of no use (heading °, tilt °, relative norm).
+UNUSABLE = {"heading_deg": 20.0, "tilt_deg": 10.0, "accel_norm_rel": 0.2, "mag_norm_rel": 0.2}
 #: Share of a sensor's samples cut as not still above which the verdict warns.
 TRIMMED = 0.05
 #: Pose-level noise, relative to the field, that no rigid device at rest shows.
@@ -119,7 +126,7 @@ class Findings:
 
 
 def _axis(directions: Array) -> str:
-    w, V = np.linalg.eigh(directions.T @ directions / max(len(directions), 1))
+    _, V = np.linalg.eigh(directions.T @ directions / max(len(directions), 1))
     return "xyz"[int(np.argmax(np.abs(V[:, 0])))]
 
 
@@ -172,6 +179,14 @@ def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
             share = float(trimmed.sum() / (trimmed.sum() + stats.sensor(s).counts.sum()))
             if share > TRIMMED:
                 add("trimmed", share=share, sensor=s, poses=int(np.count_nonzero(trimmed)))
+    accuracy = cal.accuracy
+    if accuracy is not None:
+        for what, limit in UNUSABLE.items():
+            value = getattr(accuracy, what)
+            if value is not None and not value <= limit:  # NaN counts as unusable
+                shown = f"{value:.3g}°" if what.endswith("deg") else f"{value:.1%}"
+                add("unusable", what=what.replace("_deg", "").replace("_rel", ""), value=shown)
+                break
     if found.rejected:
         which = ", ".join(f"pose {i} ({kind})" for i, kind in found.rejected[:6])
         more = "" if len(found.rejected) <= 6 else f" and {len(found.rejected) - 6} more"

@@ -108,7 +108,9 @@ def fit(
     """
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"max_iter must be a whole number of at least 1, got {max_iter!r}")
-    if isinstance(tol, bool) or not (isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0):
+    if isinstance(tol, bool) or not (
+        isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0
+    ):
         raise ValueError(f"tol must be a positive finite number, got {tol!r}")
     if initial is not None and not isinstance(initial, Calibration):
         raise ValueError(

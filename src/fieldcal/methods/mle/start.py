@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...geometry.alignment import constant_angle, constant_angle_rows
+from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
 from ...geometry.quadrics import family_fit, pencil_fits, spd_sqrt
 from ...geometry.rotations import exp_so3, wahba
-from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
 from .model import Problem, State, field
 
 Array = NDArray[np.float64]

@@ -1,0 +1,98 @@
+"""The ``c-header`` export: ``static const float`` arrays and an apply function for firmware."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...calibration import Calibration
+from .common import NAMES, corrections, provenance
+
+__all__ = ["CONTENT", "FORMULA", "c_float", "write"]
+
+#: The correction as the header's comment states it (M and B are the header's arrays).
+FORMULA = "out[i] = sum_j M[i][j] * (raw[j] - B[j]), M = inv(gain), B = bias"
+CONTENT = (
+    "`static const float FIELDCAL_ACCEL_BIAS[3]`, `FIELDCAL_ACCEL_MATRIX[3][3]` (row major), "
+    "the same for `MAG`, and `fieldcal_apply(M, B, raw, out)`"
+)
+
+_FLOAT32 = np.finfo(np.float32)
+
+
+def c_float(x: float) -> str:
+    """A C ``float`` literal of ``x``: the shortest text that reads back as its nearest float32.
+
+    The text always has a decimal point (``1.0f``, ``0.1f``; ``1f`` is not C) and an exponent
+    outside [1e-4, 1e7) (``1.0e+30f``). A value float32 cannot hold is a ``ValueError``; one too
+    small for it is written as the zero a ``float`` would hold, because compilers refuse a
+    nonzero literal that truncates to zero.
+
+    Parameters
+    ----------
+    x : float
+
+    Returns
+    -------
+    str
+    """
+    if not np.isfinite(x) or abs(x) > float(_FLOAT32.max):
+        raise ValueError(
+            f"the c-header export cannot write {x!r}: a C float holds at most "
+            f"{float(_FLOAT32.max):.9g}; export in another format (matlab, magneto, json)"
+        )
+    f = np.float32(x)
+    if f == 0 or 1e-4 <= abs(f) < 1e7:
+        text = np.format_float_positional(f, unique=True, trim="0")
+    else:
+        text = np.format_float_scientific(f, unique=True, trim="0", exp_digits=2)
+    return text + "f"
+
+
+def _floats(values: np.ndarray) -> str:
+    return ", ".join(c_float(v) for v in values)
+
+
+def write(cal: Calibration) -> str:
+    """A C header with ``static const float`` arrays and the formula in a comment.
+
+    Parameters
+    ----------
+    cal : Calibration
+
+    Returns
+    -------
+    str
+        The header; it compiles with ``cc -std=c99 -Wall -Werror``.
+    """
+    lines = ["/* Sensor calibration written by fieldcal."]
+    lines += [f" * {text}" for text in provenance(cal)]
+    lines += [
+        " *",
+        " * Apply to each raw reading (x, y, z as logged):",
+        f" *   {FORMULA}",
+        " * with M = FIELDCAL_<SENSOR>_MATRIX (row major) and B = FIELDCAL_<SENSOR>_BIAS,",
+        " * as fieldcal_apply(M, B, raw, out) below does.",
+        " * Both sensors' outputs are in one common body frame.",
+        " */",
+        "#ifndef FIELDCAL_CALIBRATION_H",
+        "#define FIELDCAL_CALIBRATION_H",
+        "",
+    ]
+    for name, M, b in corrections(cal):
+        tag = name.upper()
+        lines.append(f"/* {NAMES[name]} */")
+        lines.append(f"static const float FIELDCAL_{tag}_BIAS[3] = {{{_floats(b)}}};")
+        rows = ",\n    ".join("{" + _floats(row) + "}" for row in M)
+        lines.append(f"static const float FIELDCAL_{tag}_MATRIX[3][3] = {{\n    {rows}\n}};")
+        lines.append("")
+    lines += [
+        "static inline void fieldcal_apply(const float M[3][3], const float B[3],",
+        "                                  const float raw[3], float out[3]) {",
+        "  const float d[3] = {raw[0] - B[0], raw[1] - B[1], raw[2] - B[2]};",
+        "  for (int i = 0; i < 3; i++) out[i] = M[i][0] * d[0] + M[i][1] * d[1] + M[i][2] * d[2];",
+        "}",
+        "",
+        "#endif /* FIELDCAL_CALIBRATION_H */",
+        "",
+    ]
+    return "\n".join(lines)
