@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fieldcal.errors import InputError
-from fieldcal.logs.io import apply_to_file, load_log, parse_axes, read_table, recognise_columns
+from fieldcal.logs import apply_to_file, load_log, parse_axes, read_table, recognise_columns
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 import fieldcal
 from fieldcal.cli import cli
-from fieldcal.logs.io import load_log, parse_axes
+from fieldcal.logs import load_log, parse_axes
 from fieldcal.logs.stillness import detect_still
 
 

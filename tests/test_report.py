@@ -15,9 +15,12 @@ matplotlib.use("Agg")
 
 from fieldcal.calibration import Verdict  # noqa: E402
 from fieldcal.errors import InputError  # noqa: E402
-from fieldcal.logs.io import load_log  # noqa: E402
+from fieldcal.logs import (
+    load_log,
+    poses_from_log,
+)
 from fieldcal.output.report import _banner_html, _inverse_gain_std, write_report  # noqa: E402
-from fieldcal.pipeline import calibrate_log, poses_from_log  # noqa: E402
+from fieldcal.pipeline import calibrate_log  # noqa: E402
 from fieldcal.simulation.continuous import simulate_continuous  # noqa: E402
 
 DISTURBED = 4  # the pose whose magnetometer readings are pushed off

@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from fieldcal.errors import InputError
-from fieldcal.logs.io import load_log
+from fieldcal.logs import load_log, poses_from_log
 from fieldcal.logs.stillness import detect_still, moving_variance
-from fieldcal.pipeline import poses_from_log
 from fieldcal.simulation.continuous import simulate_continuous
 
 

@@ -41,8 +41,7 @@ from .simulation.session import simulate as simulate_session
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from .logs.io import Log
-    from .pipeline import PoseSet
+    from .logs import Log, PoseSet
 
 __all__ = ["EXIT_FAIL", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
 
@@ -116,6 +115,31 @@ def _finish(cal: Calibration, *, summary_shown: bool) -> None:
     if not summary_shown:
         _lazy(".output.summary").print_verdict(_console(stderr=True), cal)
     click.get_current_context().exit(EXIT_FAIL)
+
+
+def _parse_noise(text: str | None) -> float | dict[str, float] | None:
+    """``"0.01"`` -> 0.01 for both sensors; ``"accel=0.01,mag=0.2"`` -> a per-sensor dict."""
+    if text is None:
+        return None
+    try:
+        if "=" not in text:
+            value = float(text)
+            if not value > 0:
+                raise ValueError
+            return value
+        out = {}
+        for part in text.split(","):
+            key, _, value = part.partition("=")
+            key = key.strip().lower()
+            if key not in ("accel", "mag") or not float(value) > 0:
+                raise ValueError
+            out[key] = float(value)
+        return out
+    except ValueError:
+        raise InputError(
+            f"--noise {text!r} is not understood; give one positive standard deviation of a raw "
+            "sample (e.g. 0.01) or per sensor, e.g. accel=0.01,mag=0.2"
+        ) from None
 
 
 def _pose_noise_value(text: str, spec: str) -> str | float:
@@ -193,7 +217,7 @@ def _detect_options(f: Any) -> Any:
 
 def _load(log: str, cols: dict[str, Any]) -> Log:
     """The log, its columns as the ``_log_options`` give them (popped from ``cols``)."""
-    load_log = _lazy(".logs.io").load_log
+    load_log = _lazy(".logs").load_log
     loaded: Log = load_log(
         log,
         accel_cols=cols.pop("accel_cols"),
@@ -214,7 +238,7 @@ def _run_calibration(
     ``opts`` holds the ``calibrate`` command's options (``pose_noise`` parsed); any left out
     take the library's defaults (the method, robust fitting, estimated pose-level noise).
     """
-    io, pipeline = _lazy(".logs.io"), _lazy(".pipeline")
+    logs, pipeline = _lazy(".logs"), _lazy(".pipeline")
     notes = [
         "columns used: "
         + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
@@ -226,13 +250,13 @@ def _run_calibration(
     if opts.get("mag_axes"):
         if log.mag is None:
             raise InputError("--mag-axes given but the log has no magnetometer columns")
-        P = io.parse_axes(opts["mag_axes"])
+        P = logs.parse_axes(opts["mag_axes"])
         log.mag = log.mag @ P.T
         notes.append(
             f"magnetometer axes mapped {opts['mag_axes']} for the fit and folded back into its "
             "gain: apply the result to the raw columns as logged"
         )
-    poses: PoseSet = pipeline.poses_from_log(
+    poses: PoseSet = logs.poses_from_log(
         log,
         rate=opts.get("rate"),
         window=opts.get("window"),
@@ -262,7 +286,7 @@ def _run_calibration(
             poses,
             gravity=opts.get("gravity"),
             field_strength=opts.get("field_strength"),
-            noise=pipeline.parse_noise(opts.get("noise")),
+            noise=_parse_noise(opts.get("noise")),
             mag_axes=opts.get("mag_axes"),
             P=P,
             mag_mirrored=bool(opts.get("mag_mirrored")),
@@ -364,9 +388,7 @@ def apply(
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG; large CSV files are streamed."""
     cal = _read_cal(cal_json)
-    used = _lazy(".logs.io").apply_to_file(
-        cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols
-    )
+    used = _lazy(".logs").apply_to_file(cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols)
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
         _console().print(f"calibrated {cols} -> {output}")
@@ -488,7 +510,7 @@ def _deltas(session: Session, cal: Calibration, n_found: int) -> dict[str, float
 @click.option("--no-report", is_flag=True, help="Skip the HTML report.")
 def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
     """Simulate a Table 1 session as a continuous log, find its poses, calibrate, compare."""
-    load_log = _lazy(".logs.io").load_log
+    load_log = _lazy(".logs").load_log
     summary = _lazy(".output.summary")
     console = _console()
     started = time.perf_counter()

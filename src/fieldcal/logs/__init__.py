@@ -1,1 +1,27 @@
-"""From a log file to poses: readers, column recognition, still detection, streaming apply."""
+"""From a log file to poses: readers (by suffix), column recognition, still detection, pose
+grouping, streaming apply.
+
+The names most callers need are re-exported here: :func:`load_log`, :class:`Log`,
+:func:`read_table`, :func:`recognise_columns`, :func:`apply_to_file`, :func:`poses_from_log`.
+"""
+
+from __future__ import annotations
+
+from ..geometry.frames import parse_axes
+from .apply import apply_to_file
+from .columns import recognise_columns
+from .log import Log, load_log
+from .poses import PoseSet, poses_from_log
+from .readers import Table, read_table
+
+__all__ = [
+    "Log",
+    "PoseSet",
+    "Table",
+    "apply_to_file",
+    "load_log",
+    "parse_axes",
+    "poses_from_log",
+    "read_table",
+    "recognise_columns",
+]

@@ -2,7 +2,7 @@
 
 The seed is ``../shared/seeds/004_bce6d316cac7a7b6.txt``; equation numbers below are its own.
 
-1. Each sensor's samples are fitted with the quadric of Eq. 8 (:mod:`fieldcal.ellipsoid_fit`),
+1. Each sensor's samples are fitted with the quadric of Eq. 8 (:mod:`fieldcal.geometry.quadrics`),
    giving the centre (hard iron, offset) and ``M = LᵀL`` (Eq. 9-12); ``L`` is the reverse
    triangular factor of Eq. 13 and ``L (s − c)`` the corrected reading (Eq. 14).
 2. The magnetometer's triad is rotated onto the accelerometer's by minimising Eq. 16,
@@ -20,7 +20,7 @@ an analytic Jacobian, and a solver that did not converge raises instead of retur
 Conventions: ``fit_ellipsoid`` and ``align`` return the seed's own numbers (``L``, centre,
 ``R_mis``, ``β``); :func:`fit` (``fieldcal.calibrate(..., method="ellipsoid")``) turns them into
 fieldcal's model, ``gain = (R_mis L)⁻¹``, ``bias = c``, and re-expresses the result in
-fieldcal's gauge (:func:`fieldcal.model.canonical_gauge`). With ``a = (0, 0, −1)`` and
+fieldcal's gauge (:func:`fieldcal.geometry.gauge.canonical_gauge`). With ``a = (0, 0, −1)`` and
 ``m = (cos dip, 0, sin dip)``, ``β = a·m = −sin dip``: ``dip = θ − 90°``.
 """
 

@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
-from ..logs.io import Log
+from ..logs import Log
 
 __all__ = ["write_report"]
 
@@ -625,7 +625,7 @@ def write_report(
         The result, e.g. of :func:`fieldcal.pipeline.calibrate_log` or read from its JSON; its
         poses' ``start``/``stop`` (data-row numbers) locate them in ``log``.
     log : Log
-        The log, as loaded by :func:`fieldcal.logs.io.load_log`.
+        The log, as loaded by :func:`fieldcal.logs.load_log`.
     output : str or Path
         The HTML file to write (one self-contained page).
     png_dir : str or Path, optional

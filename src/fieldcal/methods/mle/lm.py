@@ -9,7 +9,7 @@ global parameters only, so the Gauss-Newton matrix is an arrow matrix::
 and the damped system is solved, as in bundle adjustment, through the reduced (Schur) system
 ``S = V − Σ_i W_iᵀ U_i⁻¹ W_i`` of size G: O(N) work per iteration, all batched over poses.
 At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, see
-:mod:`.mle_uncertainty`).
+:mod:`.uncertainty`).
 """
 
 from __future__ import annotations
