@@ -15,10 +15,7 @@ matplotlib.use("Agg")
 
 from fieldcal.calibration import Verdict  # noqa: E402
 from fieldcal.errors import InputError  # noqa: E402
-from fieldcal.logs import (
-    load_log,
-    poses_from_log,
-)
+from fieldcal.logs import load_log, poses_from_log  # noqa: E402
 from fieldcal.output.report import _banner_html, _inverse_gain_std, write_report  # noqa: E402
 from fieldcal.pipeline import calibrate_log  # noqa: E402
 from fieldcal.simulation.continuous import simulate_continuous  # noqa: E402
