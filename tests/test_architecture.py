@@ -1,0 +1,188 @@
+"""The house: imports only go down, startup stays light, registries validate and dispatch, the
+result stores each value once and old files still load."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fieldcal
+from fieldcal.methods import METHODS
+from fieldcal.output.exports import FORMATS
+
+SRC = Path(fieldcal.__file__).parent
+DATA = Path(__file__).parent / "data"
+
+#: Rooms from the bottom up (docs/architecture.md). A module may import its own room and rooms
+#: of a lower rank only.
+RANK = {
+    "errors": 0,
+    "_version": 0,
+    "_frozen": 0,
+    "geometry": 1,
+    "metrics": 1,
+    "serialize": 1.5,
+    "calibration": 2,
+    "stats": 3,
+    "logs": 3,
+    "simulation": 3,
+    "methods": 4,
+    "trust": 5,
+    "api": 6,
+    "pipeline": 7,
+    "output": 7,
+    "cli": 8,
+    "__init__": 9,
+}
+
+
+def _room(path: Path) -> str:
+    parts = path.relative_to(SRC).with_suffix("").parts
+    return parts[0]
+
+
+def _imports(path: Path) -> list[tuple[str, bool]]:
+    """(room imported, inside a function?) for every relative import of ``path``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = path.relative_to(SRC).parent.parts
+    found = []
+    functions = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)]
+    inner = {id(n) for f in functions for n in ast.walk(f)}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level > 0:
+            base = list(package[: len(package) - (node.level - 1)])
+            target = [*base, *(node.module.split(".") if node.module else [])]
+            names = [a.name for a in node.names]
+            room = target[0] if target else names[0]
+            found.append((room, id(node) in inner))
+    return found
+
+
+def _modules() -> list[Path]:
+    return sorted(SRC.rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", _modules(), ids=lambda p: str(p.relative_to(SRC)))
+def test_imports_only_go_down(path):
+    room = _room(path)
+    for target, _ in _imports(path):
+        assert target in RANK, f"{path.name} imports an unranked room {target!r}"
+        assert target == room or RANK[target] < RANK[room], (
+            f"{path.relative_to(SRC)} ({room}) imports {target} from the same level or above"
+        )
+
+
+def test_no_function_level_relative_imports():
+    """Lazy loading goes through importlib in one place per room (cli._lazy, api._trust, the
+    method registry, the package's __getattr__), never as an import dodging a cycle."""
+    offenders = [str(p.relative_to(SRC)) for p in _modules() for _, inside in _imports(p) if inside]
+    assert offenders == []
+
+
+def _imported_by(code: str) -> set[str]:
+    out = subprocess.run(
+        [sys.executable, "-c", f"{code}; import sys; print(' '.join(sys.modules))"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return set(out.stdout.split())
+
+
+def test_import_fieldcal_loads_numpy_only():
+    heavy = {"scipy", "matplotlib", "pyarrow", "rich", "click", "threadpoolctl"}
+    loaded = {m.split(".")[0] for m in _imported_by("import fieldcal")}
+    assert loaded & heavy == set()
+
+
+def test_calibrate_loads_scipy_when_first_used():
+    loaded = _imported_by(
+        "import fieldcal; s = fieldcal.simulate('paper', seed=0); "
+        "fieldcal.calibrate(s.accel, s.mag)"
+    )
+    assert "scipy.special" in loaded and "matplotlib" not in loaded
+
+
+def test_method_registry_validates_and_dispatches():
+    assert set(METHODS) == {"mle", "greedy", "ellipsoid"}
+    s = fieldcal.simulate("paper", seed=2)
+    with pytest.raises(ValueError, match="unknown method 'nope'; choose one of mle, greedy"):
+        fieldcal.calibrate(s.accel, s.mag, method="nope")
+    for name, method in METHODS.items():
+        options = method.options()
+        assert "stats" not in options and "body_frame" not in options
+        with pytest.raises(ValueError, match=f"unknown option.*'wobble' for method '{name}'"):
+            fieldcal.calibrate(s.accel, s.mag, method=name, wobble=1)
+    assert METHODS["mle"].options() == {"max_iter": 200, "tol": 1e-10, "initial": None}
+    assert METHODS["ellipsoid"].continuous and not METHODS["mle"].continuous
+
+
+def test_export_registry_states_each_format_once():
+    cal = fieldcal.Calibration.from_json((DATA / "calibration-v0.1.json").read_text())
+    for name, fmt in FORMATS.items():
+        text = fieldcal.output.exports.export(cal, name)
+        assert fmt.suffix.startswith(".") and text.strip()
+    with pytest.raises(ValueError, match="c-header"):
+        fieldcal.output.exports.export(cal, "nope")
+
+
+def test_version_0_1_files_still_load_with_the_same_numbers():
+    """The file written by fieldcal 0.1 (tests/data, kept as written) reads into schema 2; its
+    standard errors, now derived from the covariance, equal those 0.1 stored beside it."""
+    text = (DATA / "calibration-v0.1.json").read_text()
+    old = json.loads(text)
+    cal = fieldcal.Calibration.from_json(text)
+    assert old["schema_version"] == 1 and cal.version == "0.1.0"
+    np.testing.assert_allclose(cal.accel.bias_std, old["accel"]["bias_std"], rtol=1e-12)
+    np.testing.assert_allclose(cal.mag.gain_std, old["mag"]["gain_std"], rtol=1e-12)
+    assert cal.dip_std_deg == pytest.approx(old["dip_std_deg"], rel=1e-12)
+    assert cal.misalignment_std_deg == pytest.approx(old["misalignment_std_deg"], rel=1e-6)
+    assert cal.cost == pytest.approx(old["cost"], rel=1e-12)
+    assert cal.verdict is None and cal.rejected == ()
+    again = fieldcal.Calibration.from_json(cal.to_json())
+    assert again == cal and json.loads(cal.to_json())["schema_version"] == 2
+    greedy = fieldcal.Calibration.from_json((DATA / "calibration-v0.1-greedy.json").read_text())
+    assert greedy.method == "greedy" and greedy.accel.gain_std is None
+
+
+def test_equality_ignores_provenance_and_values_are_stored_once():
+    s = fieldcal.simulate("paper", seed=5)
+    a = fieldcal.calibrate(s.accel, s.mag)
+    b = dataclasses.replace(a, created="1999-01-01T00:00:00+00:00", version="0.0.1")
+    assert a == b
+    assert a != dataclasses.replace(a, method="greedy")
+    stored = {f.name for f in dataclasses.fields(fieldcal.Calibration)}
+    derived = {"cost", "dip_std_deg", "misalignment_std_deg", "dip_deg", "misalignment_deg"}
+    assert stored & derived == set()
+    sensor_fields = {f.name for f in dataclasses.fields(fieldcal.SensorCalibration)}
+    assert {"gain_std", "bias_std"} & sensor_fields == set()
+    assert a.accel.gain_std[0, 1] == a.covariance.std("accel.gain[0,1]")
+    assert a.cost == a.diagnostics.statistic
+
+
+def test_options_record_what_was_used():
+    s = fieldcal.simulate("paper", seed=6)
+    cal = fieldcal.calibrate(s.accel, s.mag, mag_mirrored=True, body_frame="mag", tol=1e-9)
+    o = cal.options
+    assert o["mag_mirrored"] is True and o["body_frame"] == "mag" and o["tol"] == 1e-9
+    assert o["noise_sources"] == {"accel": "scatter", "mag": "scatter"}
+    assert o["pose_noise"] == {"accel": "estimated", "mag": "estimated"} and o["robust"] is True
+    assert json.loads(cal.to_json())["options"]["mag_mirrored"] is True
+
+
+def test_repr_is_short():
+    s = fieldcal.simulate("paper", seed=7)
+    cal = fieldcal.calibrate(s.accel, s.mag)
+    text = repr(cal)
+    assert len(text) < 200 and "\n" not in text
+    assert text.startswith("Calibration(method='mle', verdict=")
+    assert f"dip={cal.dip_deg:.3f}" in text and "sensors=accel+mag" in text
+    alone = fieldcal.calibrate(s.accel, None)
+    assert "dip" not in repr(alone) and "sensors=accel" in repr(alone)
