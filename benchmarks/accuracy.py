@@ -4,7 +4,9 @@ For every session the oracle is ``scipy.optimize.least_squares`` on the same lik
 same pose statistics) started at the true parameters: the best any method can do on that data.
 Reported per setting: δ/δ_oracle (δ = the two sensors' Eq. 19 errors combined in quadrature),
 the failure share (δ > 1.5 δ_oracle), how often fieldcal's J is at or below the oracle's, and
-the certificate's p-values (uniform at the ML optimum).
+the certificate's p-values (uniform at the ML optimum) — for the solver on the seed paper's
+likelihood (``pose_noise="none", robust=False``), and for the default call (pose-level noise
+estimated, robust fit), whose δ should stay at the oracle on these clean sessions.
 
     python benchmarks/accuracy.py                 # 1050 sessions (about 5 minutes)
     python benchmarks/accuracy.py --quick         # 70 sessions, no docs update
@@ -52,6 +54,7 @@ def delta(truth, cal_means, counts):
 
 def run_setting(preset: str, sessions: int, seed0: int) -> dict:
     ratios, below, pvals, iters, times = [], [], [], [], []
+    default_ratios, default_times, q_positive, rejected, verdicts = [], [], [], [], []
     for k in range(sessions):
         seed = seed0 + k
         n_poses = 8 + seed % 3 if preset == "few_poses" else None
@@ -60,11 +63,19 @@ def run_setting(preset: str, sessions: int, seed0: int) -> dict:
         t = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            cal = fieldcal.calibrate(s.accel, s.mag)
-        times.append(time.perf_counter() - t)
+            cal = fieldcal.calibrate(s.accel, s.mag, pose_noise="none", robust=False)
+            times.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            default = fieldcal.calibrate(s.accel, s.mag)
+            default_times.append(time.perf_counter() - t)
         pa, pm, res = oracle(stats, s.truth)
         d_or = delta(s.truth, (pa, pm), s.counts)
         ratios.append(delta(s.truth, cal.predicted_means(), s.counts) / d_or)
+        if not default.rejected:  # δ is over all poses: compare when every pose was kept
+            default_ratios.append(delta(s.truth, default.predicted_means(), s.counts) / d_or)
+        q_positive.append(default.accel.pose_noise_std > 0 or default.mag.pose_noise_std > 0)
+        rejected.append(len(default.rejected) > 0)
+        verdicts.append(default.verdict.level)
         below.append(cal.cost <= 2 * res.cost * (1 + 1e-7) + 1e-9)
         pvals.append(cal.diagnostics.p_value)
         iters.append(cal.iterations)
@@ -80,6 +91,13 @@ def run_setting(preset: str, sessions: int, seed0: int) -> dict:
         "p_small": float(np.mean(np.array(pvals) < 0.05)),
         "iters": float(np.median(iters)),
         "ms": 1e3 * float(np.median(times)),
+        "d_median": float(np.median(default_ratios)),
+        "d_max": float(np.max(default_ratios)),
+        "d_fail": float(np.mean(np.array(default_ratios) > 1.5)),
+        "q_positive": float(np.mean(q_positive)),
+        "rejected": float(np.mean(rejected)),
+        "verdicts": {v: verdicts.count(v) for v in ("pass", "warn", "fail")},
+        "d_ms": 1e3 * float(np.median(default_times)),
     }
 
 
@@ -105,6 +123,18 @@ def main() -> None:
         "| δ within 1 % | J ≤ oracle's J | p < 0.05 | median LM iterations | median ms |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    default_lines = [
+        "| setting | median δ/δ_oracle | max | failures | q > 0 | any pose dropped "
+        "| verdicts pass / warn / fail | median ms |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for preset, _, r in rows:
+        v = r["verdicts"]
+        default_lines.append(
+            f"| `{preset}` | {r['d_median']:.5f} | {r['d_max']:.4f} | {r['d_fail']:.1%} | "
+            f"{r['q_positive']:.0%} | {r['rejected']:.1%} | {v['pass']} / {v['warn']} / "
+            f"{v['fail']} | {r['d_ms']:.1f} |"
+        )
     allr = {k: [] for k in ("fail", "sessions")}
     for preset, label, r in rows:
         lines.append(
@@ -125,8 +155,15 @@ def main() -> None:
         "found from the truth (δ/δ_oracle > 1 with J below the oracle's is the data's optimum "
         "lying further from the truth, not a failure of the solver). Median ms: "
         "`fieldcal.calibrate` from raw samples, one BLAS thread.\n\n"
+        '**The solver on the seed paper\'s likelihood** (`pose_noise="none", robust=False`: '
+        "Eq. 7's noise only, every pose kept; the oracle's likelihood):\n\n"
         + "\n".join(lines)
-        + f"\n\nAll settings: {n_fail} failures in {n_all} sessions.\n"
+        + f"\n\nAll settings: {n_fail} failures in {n_all} sessions.\n\n"
+        "**The default call** (pose-level noise estimated, robust fit) on the same clean "
+        "sessions: δ/δ_oracle over the sessions where no pose was dropped (δ is over all "
+        "poses); 'q > 0': sessions where either sensor's pose-level noise came out above zero "
+        "(about half, as for any variance estimate at its boundary); 'any pose dropped': false "
+        "alarms (1 % family-wise by design).\n\n" + "\n".join(default_lines) + "\n"
     )
     print(text)
     if not args.quick:
