@@ -11,7 +11,7 @@ numpy only: SciPy, matplotlib and pyarrow load when a function first needs them.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from . import metrics
 from ._version import __version__
@@ -60,7 +60,7 @@ __all__ = [
 _LAZY = {"align": "fieldcal.methods.ellipsoid", "fit_ellipsoid": "fieldcal.methods.ellipsoid"}
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name in _LAZY:
         import importlib
 

@@ -4,21 +4,21 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["ArrayDataclass", "frozen_array"]
 
 
-def frozen_array(value: Any) -> np.ndarray:
+def frozen_array(value: ArrayLike) -> NDArray[np.float64]:
     """A float copy of ``value`` that cannot be written to."""
     array = np.array(value, dtype=float)
     array.setflags(write=False)
     return array
 
 
-def _values_equal(a: Any, b: Any) -> bool:
+def _values_equal(a: object, b: object) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         if a is None or b is None:
             return False
@@ -41,8 +41,8 @@ class ArrayDataclass:
             return NotImplemented
         return all(
             _values_equal(getattr(self, f.name), getattr(other, f.name))
-            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]  # mixed into dataclasses
             if f.compare
         )
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None  # type: ignore[assignment]  # equal by value, unhashable like its arrays

@@ -12,22 +12,30 @@ import importlib
 import numbers
 from collections.abc import Callable, Mapping
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .calibration import Calibration
 from .methods import get as get_method
 from .stats.noise import noise_covariance, per_sensor, pose_noise_value
-from .stats.poses import PoseStats, summarize
+from .stats.poses import PoseStats, Samples, summarize
+
+if TYPE_CHECKING:
+    from threadpoolctl import ThreadpoolController
 
 __all__ = ["calibrate"]
 
-PoseNoiseSpec = str | float | Mapping[str, "str | float"]
+#: ``noise=``: a standard deviation (scalar or per axis) or a 3x3 covariance, for both sensors
+#: or per sensor (checked at run time by :func:`fieldcal.stats.noise.noise_covariance`).
+NoiseSpec: TypeAlias = ArrayLike | Mapping[str, ArrayLike | None]
+#: ``pose_noise=``: "auto", "none" or a standard deviation, for both sensors or per sensor.
+PoseNoiseSpec: TypeAlias = str | float | Mapping[str, str | float]
 
 
 @functools.cache
-def _blas() -> Any:
+def _blas() -> ThreadpoolController:
     """One cached controller: limiting threads through it costs microseconds, not the
     milliseconds of re-scanning the loaded BLAS libraries on every call."""
     from threadpoolctl import ThreadpoolController
@@ -48,6 +56,14 @@ def _magnitude(value: object, name: str) -> float | None:
         raise ValueError(f"{name} must be a positive number, got {value!r}")
     if not (np.isfinite(float(value)) and float(value) > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return float(value)
+
+
+def _probability(value: object, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number in (0, 1), got {value!r}")
+    if not 0 < float(value) < 1:
+        raise ValueError(f"{name} must be in (0, 1), got {value!r}")
     return float(value)
 
 
@@ -72,13 +88,13 @@ def _continuous(accel: object, mag: object) -> bool:
 
 
 def calibrate(
-    accel: Any,
-    mag: Any = None,
+    accel: Samples | None,
+    mag: Samples | None = None,
     method: str = "mle",
     *,
     gravity: float | None = None,
     field_strength: float | None = None,
-    noise: Any = None,
+    noise: NoiseSpec | None = None,
     pose_noise: PoseNoiseSpec = "auto",
     robust: bool = True,
     false_alarm: float = 0.01,
@@ -86,7 +102,7 @@ def calibrate(
     body_frame: str = "accel",
     mag_mirrored: bool = False,
     on_progress: Callable[[str], None] | None = None,
-    **options: Any,
+    **options: object,
 ) -> Calibration:
     """Calibrate an accelerometer and a magnetometer together from static poses.
 
@@ -148,10 +164,7 @@ def calibrate(
         trim = bool(robust)
     elif not isinstance(trim, (bool, np.bool_)):
         raise ValueError(f"trim must be True or False, got {trim!r}")
-    if isinstance(false_alarm, bool) or not isinstance(false_alarm, numbers.Real):
-        raise ValueError(f"false_alarm must be a number in (0, 1), got {false_alarm!r}")
-    if not 0 < float(false_alarm) < 1:
-        raise ValueError(f"false_alarm must be in (0, 1), got {false_alarm!r}")
+    alpha = _probability(false_alarm, "false_alarm")
     g = _magnitude(gravity, "gravity")
     h = _magnitude(field_strength, "field_strength")
     spec.check_options(options)
@@ -160,7 +173,7 @@ def calibrate(
         "body_frame": body_frame,
         "mag_mirrored": bool(mag_mirrored),
         "robust": bool(robust),
-        "false_alarm": float(false_alarm),
+        "false_alarm": alpha,
         "trim": bool(trim),
     }
 
@@ -204,7 +217,7 @@ def calibrate(
                 sources=sources,
                 pose_noise={s: fixed[s] for s in stats.sensors},
                 robust=bool(robust),
-                alpha=float(false_alarm),
+                alpha=alpha,
                 mag_mirrored=bool(mag_mirrored),
                 on_progress=on_progress,
             )

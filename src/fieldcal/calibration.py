@@ -23,7 +23,7 @@ import functools
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -226,10 +226,11 @@ class SensorCalibration(ArrayDataclass):
 
     def correct(self, raw: ArrayLike) -> Array:
         """Inverse model: raw readings (..., 3) -> body-frame vectors ``gain⁻¹ (raw − bias)``."""
-        raw = np.asarray(raw, dtype=float)
-        if raw.shape[-1:] != (3,):
-            raise ValueError(f"raw readings must have shape (..., 3), got {raw.shape}")
-        return np.linalg.solve(self.gain, (raw - self.bias).reshape(-1, 3).T).T.reshape(raw.shape)
+        x = np.asarray(raw, dtype=float)
+        if x.shape[-1:] != (3,):
+            raise ValueError(f"raw readings must have shape (..., 3), got {x.shape}")
+        body = np.linalg.solve(self.gain, (x - self.bias).reshape(-1, 3).T).T.reshape(x.shape)
+        return cast(Array, body)  # numpy's stubs widen solve's float64 to floating
 
 
 @dataclass(frozen=True, eq=False)
@@ -508,24 +509,26 @@ class Calibration(ArrayDataclass):
         Gains (and their covariance entries) are divided by the new magnitude relative to the
         old one; every predicted reading is unchanged.
         """
-        changes: dict[str, Any] = {}
         factors: dict[str, float] = {}
-        for name, value, label in (
-            ("accel", gravity, "gravity"),
-            ("mag", field_strength, "field_strength"),
-        ):
-            sensor, ref = getattr(self, name), self.gravity if name == "accel" else self.magnetic
+
+        def rescaled(
+            name: str, sensor: SensorCalibration | None, ref: Array | None, value: float | None
+        ) -> tuple[SensorCalibration | None, Array | None]:
             if value is None or sensor is None or ref is None:
-                continue
+                return sensor, ref
             if not (np.isfinite(value) and value > 0):
+                label = "gravity" if name == "accel" else "field_strength"
                 raise ValueError(f"{label} must be a positive number, got {value!r}")
             c = float(np.linalg.norm(ref)) / float(value)
-            changes[name] = dataclasses.replace(sensor, gain=sensor.gain * c)
-            changes["gravity" if name == "accel" else "magnetic"] = ref / c
             factors[f"{name}.gain"] = c
-        if self.covariance is not None:
-            changes["covariance"] = self.covariance.scaled(factors)
-        return dataclasses.replace(self, **changes, units={})
+            return dataclasses.replace(sensor, gain=sensor.gain * c), ref / c
+
+        accel, g = rescaled("accel", self.accel, self.gravity, gravity)
+        mag, h = rescaled("mag", self.mag, self.magnetic, field_strength)
+        covariance = None if self.covariance is None else self.covariance.scaled(factors)
+        return dataclasses.replace(
+            self, accel=accel, mag=mag, gravity=g, magnetic=h, covariance=covariance, units={}
+        )
 
     def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
         """The twin of this result whose magnetometer has the requested handedness.
@@ -544,7 +547,11 @@ class Calibration(ArrayDataclass):
         Ka = self.accel.gain
         accel_frame = np.allclose(Ka, Ka.T, rtol=0, atol=1e-9 * np.abs(Ka).max())
         name = "mag" if accel_frame else "accel"
-        sensor = self.sensor(name)
+        accel, mag = self.accel, self.mag
+        if name == "mag":
+            mag = dataclasses.replace(mag, gain=-mag.gain)
+        else:
+            accel = dataclasses.replace(accel, gain=-accel.gain)
         h = self.magnetic
         covariance = self.covariance
         if covariance is not None:
@@ -552,7 +559,8 @@ class Calibration(ArrayDataclass):
         options = {**self.options, "mag_mirrored": bool(mirrored)}
         return dataclasses.replace(
             self,
-            **{name: dataclasses.replace(sensor, gain=-sensor.gain)},
+            accel=accel,
+            mag=mag,
             magnetic=np.array([h[0], h[1], -h[2]]),
             rotations=self.rotations @ twin_flip(name),
             covariance=covariance,
@@ -578,7 +586,7 @@ class Calibration(ArrayDataclass):
         return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Calibration:
+    def from_dict(cls, data: Mapping[str, object]) -> Calibration:
         """Read the document of :meth:`to_dict` (any schema version up to ours).
 
         Validated completely: a one-line ``ValueError`` names the first problem (a missing

@@ -17,25 +17,25 @@ import importlib
 import importlib.util
 import inspect
 import json
-import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
 
 import click
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .api import calibrate as _calibrate
 from .calibration import Calibration
 from .errors import InputError
 from .methods import METHODS
 from .metrics import reconstruction_error
 from .output import exports
-from .simulation.session import Session
+from .simulation.session import Preset, Session
 from .simulation.session import simulate as simulate_session
 
 if TYPE_CHECKING:
@@ -53,6 +53,44 @@ _USER_ERRORS = (InputError, ValueError, OSError, np.linalg.LinAlgError)
 _DEFAULT_OUTPUT = "cal.json"
 #: The library's default method: the command line has no default of its own.
 _DEFAULT_METHOD = inspect.signature(_calibrate).parameters["method"].default
+
+#: A command function, as click's decorators take and return it.
+_Command = TypeVar("_Command", bound=Callable[..., object])
+
+
+class _LogOptions(TypedDict, total=False):
+    """What :func:`_log_options` adds to a command (popped by :func:`_load`)."""
+
+    accel_cols: str | None
+    mag_cols: str | None
+    gyro_cols: str | None
+    time_col: str | None
+    pose_col: str | None
+    drop_nan: bool
+
+
+class _CalibrateOptions(_LogOptions, total=False):
+    """The ``calibrate`` command's options other than ``--pose-noise``; absent ones take the
+    library's defaults."""
+
+    method: str
+    gravity: float | None
+    field_strength: float | None
+    noise: str | None
+    no_robust: bool
+    mag_axes: str | None
+    mag_mirrored: bool
+    rate: float | None
+    min_still: float | None
+    window: float | None
+    trim: float | None
+    still_threshold: float | None
+
+
+class _ParsedOptions(_CalibrateOptions, total=False):
+    """The options :func:`_run_calibration` takes: ``--pose-noise`` parsed."""
+
+    pose_noise: str | float | dict[str, str | float]
 
 
 def _lazy(name: str) -> ModuleType:
@@ -75,7 +113,7 @@ def _console(*, stderr: bool = False) -> Console:
 class _Group(click.Group):
     """A click group whose commands report user errors in one line with exit code 2."""
 
-    def invoke(self, ctx: click.Context) -> Any:
+    def invoke(self, ctx: click.Context) -> object:
         try:
             return super().invoke(ctx)
         except _USER_ERRORS as exc:
@@ -129,11 +167,11 @@ def _parse_noise(text: str | None) -> float | dict[str, float] | None:
             return value
         out = {}
         for part in text.split(","):
-            key, _, value = part.partition("=")
+            key, _, number = part.partition("=")
             key = key.strip().lower()
-            if key not in ("accel", "mag") or not float(value) > 0:
+            if key not in ("accel", "mag") or not float(number) > 0:
                 raise ValueError
-            out[key] = float(value)
+            out[key] = float(number)
         return out
     except ValueError:
         raise InputError(
@@ -176,7 +214,7 @@ def _parse_pose_noise(spec: str) -> str | float | dict[str, str | float]:
     return out
 
 
-def _log_options(f: Any) -> Any:
+def _log_options(f: _Command) -> _Command:
     options = [
         click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised)."),
         click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised)."),
@@ -190,7 +228,7 @@ def _log_options(f: Any) -> Any:
     return f
 
 
-def _detect_options(f: Any) -> Any:
+def _detect_options(f: _Command) -> _Command:
     options = [
         click.option("--rate", type=float, help="Sample rate in Hz when there is no time column."),
         click.option(
@@ -215,7 +253,7 @@ def _detect_options(f: Any) -> Any:
     return f
 
 
-def _load(log: str, cols: dict[str, Any]) -> Log:
+def _load(log: str, cols: _LogOptions) -> Log:
     """The log, its columns as the ``_log_options`` give them (popped from ``cols``)."""
     load_log = _lazy(".logs").load_log
     loaded: Log = load_log(
@@ -231,7 +269,7 @@ def _load(log: str, cols: dict[str, Any]) -> Log:
 
 
 def _run_calibration(
-    log: Log, opts: dict[str, Any]
+    log: Log, opts: _ParsedOptions
 ) -> tuple[Calibration, PoseSet, dict[str, Any], list[str]]:
     """Poses, calibration, the JSON document and the notes on the input for a loaded log.
 
@@ -271,7 +309,7 @@ def _run_calibration(
     )
     distinct = len({e["orientation"] for e in poses.entries})
     notes.append(f"{poses.n} poses {how} ({distinct} distinct orientations)")
-    choices: dict[str, Any] = {}
+    choices: dict[str, object] = {}
     if opts.get("method"):
         choices["method"] = opts["method"]
     if opts.get("pose_noise") is not None:
@@ -297,7 +335,7 @@ def _run_calibration(
     return cal, poses, pipeline.document(cal, poses), notes
 
 
-def _write_json(path: str | Path, doc: dict[str, Any]) -> None:
+def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     Path(path).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
@@ -353,15 +391,23 @@ def _write_json(path: str | Path, doc: dict[str, Any]) -> None:
     help="Print the result as JSON instead of the summary (writes a file only with -o).",
 )
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors and a fail verdict.")
-def calibrate(log: str, output: str | None, as_json: bool, quiet: bool, **opts: Any) -> None:
+def calibrate(
+    log: str,
+    output: str | None,
+    as_json: bool,
+    quiet: bool,
+    pose_noise: str,
+    **opts: Unpack[_CalibrateOptions],
+) -> None:
     """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON.
 
     The verdict (PASS, WARN or FAIL, with reasons) comes first. Exit code 3 when it is FAIL;
     the JSON is written all the same.
     """
-    opts["pose_noise"] = _parse_pose_noise(opts["pose_noise"])  # before the slow part
-    data = _load(log, opts)
-    cal, _, doc, notes = _run_calibration(data, opts)
+    # --pose-noise is parsed before the slow part
+    options: _ParsedOptions = {**opts, "pose_noise": _parse_pose_noise(pose_noise)}
+    data = _load(log, options)
+    cal, _, doc, notes = _run_calibration(data, options)
     if output is None and not as_json:
         output = _DEFAULT_OUTPUT
     if output is not None:
@@ -442,7 +488,7 @@ def simulate(
     rate: float,
 ) -> None:
     """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
-    extra: dict[str, Any] = {"n_poses": poses} if poses else {}
+    extra: Preset = {"n_poses": poses} if poses else {}
     if handheld:
         extra["pose_distribution"] = "handheld"
     if continuous:
@@ -481,7 +527,9 @@ def simulate(
 @click.option("-o", "--output", default="report.html", show_default=True, help="HTML report.")
 @click.option("--png", "png_dir", help="Also write each figure as PNG into this folder.")
 @_log_options
-def report(cal_json: str, log: str, output: str, png_dir: str | None, **cols: Any) -> None:
+def report(
+    cal_json: str, log: str, output: str, png_dir: str | None, **cols: Unpack[_LogOptions]
+) -> None:
     """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
     cal = _read_cal(cal_json)
     data = _load(log, cols)
@@ -497,6 +545,8 @@ def _deltas(session: Session, cal: Calibration, n_found: int) -> dict[str, float
         return {"accel": None, "mag": None}
     true_a, true_m = truth.predicted_means()
     est_a, est_m = cal.predicted_means()
+    if true_a is None or true_m is None or est_a is None or est_m is None:
+        return {"accel": None, "mag": None}
     counts = session.counts
     return {
         "accel": reconstruction_error(true_a, est_a, truth.accel.noise_cov, counts),
@@ -542,4 +592,4 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    main()

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .api import calibrate
+from .api import NoiseSpec, calibrate
 from .calibration import Calibration
 from .errors import InputError
 from .logs import Log, PoseSet
@@ -100,7 +100,7 @@ def calibrate_log(
     method: str = "mle",
     gravity: float | None = None,
     field_strength: float | None = None,
-    noise: Any = None,
+    noise: NoiseSpec | None = None,
     mag_axes: str | None = None,
     P: Array | None = None,
     mag_mirrored: bool = False,

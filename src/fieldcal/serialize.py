@@ -17,9 +17,13 @@ import math
 import types
 import typing
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "decode", "encode", "upgrade"]
 
@@ -30,8 +34,12 @@ SCHEMA_VERSION = 2
 
 _MAX_POSES = 10_000_000
 
+_D = TypeVar("_D", bound="DataclassInstance")
+#: A JSON array of numbers, nested to any depth.
+_Nested: TypeAlias = "float | list[_Nested]"
 
-def _number(value: Any) -> Any:
+
+def _number(value: float | np.floating[Any]) -> float | str:
     value = float(value)
     if math.isnan(value):
         return "nan"
@@ -40,13 +48,13 @@ def _number(value: Any) -> Any:
     return value
 
 
-def encode(value: Any) -> Any:
+def encode(value: object) -> Any:
     """A JSON-ready form of ``value``: dataclasses as dicts of their stored fields (plus their
     ``JSON_DERIVED`` values), arrays as nested lists, NaN/inf as strings."""
     if value is None or isinstance(value, str):
         return value
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        out = {}
+        out: dict[str, object] = {}
         for f in dataclasses.fields(value):
             if f.metadata.get("stored", True):
                 out[f.metadata.get("key", f.name)] = encode(getattr(value, f.name))
@@ -75,7 +83,7 @@ def _fail(where: str, what: str) -> typing.NoReturn:
     raise ValueError(f"invalid calibration file: {where} {what}; write it again with fieldcal")
 
 
-def _float(value: Any, where: str) -> float:
+def _float(value: object, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         _fail(where, f"must be a number, not {type(value).__name__}")
     if isinstance(value, str):
@@ -85,8 +93,8 @@ def _float(value: Any, where: str) -> float:
     return float(value)
 
 
-def _array(value: Any, where: str, shape: tuple[int, ...] | None) -> np.ndarray:
-    def walk(v: Any, depth: int) -> Any:
+def _array(value: object, where: str, shape: tuple[int, ...] | None) -> NDArray[np.float64]:
+    def walk(v: object, depth: int) -> _Nested:
         if isinstance(v, list):
             if depth > 4:
                 _fail(where, "is nested too deeply")
@@ -111,11 +119,11 @@ def _array(value: Any, where: str, shape: tuple[int, ...] | None) -> np.ndarray:
     return array
 
 
-def _is_array_hint(hint: Any) -> bool:
+def _is_array_hint(hint: object) -> bool:
     return typing.get_origin(hint) is np.ndarray or hint is np.ndarray
 
 
-def _decode_value(hint: Any, value: Any, where: str, meta: Mapping[str, Any]) -> Any:
+def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, Any]) -> object:
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(hint) if a is not type(None)]
@@ -124,8 +132,8 @@ def _decode_value(hint: Any, value: Any, where: str, meta: Mapping[str, Any]) ->
         return _decode_value(args[0], value, where, meta)
     if _is_array_hint(hint):
         return _array(value, where, meta.get("shape"))
-    if dataclasses.is_dataclass(hint):
-        return decode(hint, value, where)  # type: ignore[arg-type]
+    if isinstance(hint, type) and dataclasses.is_dataclass(hint):
+        return decode(hint, value, where)
     if hint is float:
         return _float(value, where)
     if hint is bool:
@@ -158,13 +166,13 @@ def _decode_value(hint: Any, value: Any, where: str, meta: Mapping[str, Any]) ->
     return value  # typing.Any: kept as read
 
 
-def decode(cls: type, data: Any, where: str = "document") -> Any:
+def decode(cls: type[_D], data: object, where: str = "document") -> _D:
     """Build dataclass ``cls`` from ``data`` (as written by :func:`encode`), validating every
     stored field; unknown keys (derived values, newer additions) are ignored."""
     if not isinstance(data, Mapping):
         _fail(where, f"must be an object, not {type(data).__name__}")
     hints = typing.get_type_hints(cls)
-    kwargs = {}
+    kwargs: dict[str, object] = {}
     for f in dataclasses.fields(cls):
         if not f.metadata.get("stored", True):
             continue
@@ -181,7 +189,7 @@ def decode(cls: type, data: Any, where: str = "document") -> Any:
 
 
 # ----------------------------------------------------------------------------- versions
-def _v1_to_v2(data: dict[str, Any]) -> dict[str, Any]:
+def _v1_to_v2(data: dict[str, object]) -> dict[str, object]:
     """fieldcal 0.1 wrote ``converged=False`` for an implausible fit and had no verdict: the
     optimiser's own flag is not recoverable, so an implausible v1 fit reads as converged with
     its certificate kept in ``diagnostics``."""
@@ -192,10 +200,10 @@ def _v1_to_v2(data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-UPGRADES: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _v1_to_v2}
+UPGRADES: dict[int, Callable[[dict[str, object]], dict[str, object]]] = {1: _v1_to_v2}
 
 
-def upgrade(data: Mapping[str, Any]) -> dict[str, Any]:
+def upgrade(data: Mapping[str, object]) -> dict[str, object]:
     """Check the header and bring an older document to :data:`SCHEMA_VERSION`."""
     if data.get("schema") != SCHEMA:
         raise ValueError(

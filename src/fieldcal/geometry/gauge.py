@@ -7,6 +7,8 @@ magnitudes and a rotation of the body frame; :func:`canonical_gauge` fixes all t
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -15,6 +17,28 @@ from .frames import GRAVITY, orthogonal_polar_factor
 __all__ = ["canonical_gauge"]
 
 Array = NDArray[np.float64]
+
+
+@overload
+def canonical_gauge(
+    rotations: Array,
+    accel_gain: Array,
+    mag_gain: Array,
+    gravity: Array,
+    magnetic: Array,
+    body_frame: str = ...,
+) -> tuple[Array, Array, Array, Array, Array]: ...
+
+
+@overload
+def canonical_gauge(
+    rotations: Array,
+    accel_gain: Array | None,
+    mag_gain: Array | None,
+    gravity: Array | None,
+    magnetic: Array | None,
+    body_frame: str = ...,
+) -> tuple[Array, Array | None, Array | None, Array | None, Array | None]: ...
 
 
 def canonical_gauge(
@@ -35,8 +59,11 @@ def canonical_gauge(
        and move the rotation ``U`` into every ``R_i``, leaving that gain symmetric positive
        definite.
 
-    Returns ``(rotations, accel_gain, mag_gain, gravity, magnetic)``.
+    Returns ``(rotations, accel_gain, mag_gain, gravity, magnetic)``; a sensor's gain and its
+    field are both given or both ``None``.
     """
+    if (accel_gain is None) != (gravity is None) or (mag_gain is None) != (magnetic is None):
+        raise ValueError("a sensor's gain and its reference field must be given together")
     R = np.array(rotations, dtype=float)
     Ka = None if accel_gain is None else np.array(accel_gain, dtype=float)
     Km = None if mag_gain is None else np.array(mag_gain, dtype=float)
@@ -63,10 +90,10 @@ def canonical_gauge(
     R = R @ W.T
 
     # 2. unit fields
-    if g is not None:
+    if Ka is not None and g is not None:
         Ka = Ka * np.linalg.norm(g)
         g = GRAVITY.copy()
-    if h is not None:
+    if Km is not None and h is not None:
         hw = W @ h
         Km = Km * np.linalg.norm(hw)
         h = hw / np.linalg.norm(hw)
@@ -75,6 +102,7 @@ def canonical_gauge(
     K = Ka if body_frame == "accel" else Km
     if K is None:
         K = Km if Ka is None else Ka
+    assert K is not None  # a field is given, and with it its gain
     U = orthogonal_polar_factor(K)
     if np.linalg.det(U) < 0:
         raise ValueError(

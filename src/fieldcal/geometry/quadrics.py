@@ -23,6 +23,7 @@ Every fit takes optional per-point ``weights`` (e.g. sample counts when fitting 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -131,7 +132,7 @@ def quadric_from_coefficients(v: ArrayLike) -> Quadric:
     V, linear, constant = _split(v)
     with np.errstate(all="ignore"):
         try:
-            center = -np.linalg.solve(V, linear)
+            center = -cast(Array, np.linalg.solve(V, linear))
         except np.linalg.LinAlgError:
             center = np.full(3, np.nan)
         kappa = float(center @ V @ center - constant)  # Eq. 11
@@ -155,6 +156,11 @@ def _from_normalised(center_n: Array, shape_n: Array, mean: Array, scale: float)
     return Quadric(v, center, kappa, shape)
 
 
+def _triangular_factor(A: Array) -> Array:
+    """``R`` of a thin QR (numpy's stubs type ``mode="r"`` as the ``(Q, R)`` pair)."""
+    return cast(Array, np.linalg.qr(A, mode="r"))
+
+
 def _check_rank(R: Array, what: str) -> None:
     """Refuse a rank-deficient design, judged on the singular values of its R factor."""
     s = np.linalg.svd(R, compute_uv=False)
@@ -168,10 +174,10 @@ def _check_rank(R: Array, what: str) -> None:
 def _lstsq_qr(A: Array, b: Array, what: str) -> Array:
     """Least squares by one thin QR of ``[A | b]``: stable (no normal equations) and fast for
     tall A, and the triangular factor also serves the rank check."""
-    R = np.linalg.qr(np.column_stack([A, b]), mode="r")
+    R = _triangular_factor(np.column_stack([A, b]))
     k = A.shape[1]
     _check_rank(R[:k, :k], what)
-    return np.linalg.solve(R[:k, :k], R[:k, k])
+    return cast(Array, np.linalg.solve(R[:k, :k], R[:k, k]))
 
 
 # --------------------------------------------------------------------------- fits
@@ -214,7 +220,8 @@ def algebraic_fit(
         u = _lstsq_qr(D * sw[:, None], d2 * sw, "an ellipsoid")
     else:
         Dw = D * w[:, None]
-        u = np.linalg.solve(Dw.T @ D, Dw.T @ d2)  # the seed's normal equations, as published
+        # the seed's normal equations, as published
+        u = cast(Array, np.linalg.solve(Dw.T @ D, Dw.T @ d2))
     v = np.concatenate([[u[0] + u[1] - 1, u[0] - 2 * u[1] - 1, u[1] - 2 * u[0] - 1], u[2:]])
     quadric = quadric_from_coefficients(v)
     if not conditioned:
@@ -243,7 +250,7 @@ def li_griffiths_fit(points: ArrayLike, weights: ArrayLike | None = None) -> Qua
     x, w = _check_points(points, weights)
     mean, scale = _normalisation(x, w)
     D = _quadratic_terms((x - mean) / scale) * np.sqrt(w)[:, None]
-    _check_rank(np.linalg.qr(D[:, :9], mode="r"), "an ellipsoid")
+    _check_rank(_triangular_factor(D[:, :9]), "an ellipsoid")
     quad, lin = D[:, :6], D[:, 6:]
     Q, _ = np.linalg.qr(lin)
     reduced = quad - Q @ (Q.T @ quad)  # quadratic columns orthogonal to the linear ones
@@ -370,7 +377,9 @@ def family_fit(
     return s0 * (V / np.sqrt(w)) @ V.T, c0 + s0 * zc
 
 
-def pencil_fits(y: ArrayLike, weights: ArrayLike, n_grid: int) -> tuple[Array, Array, Array]:
+def pencil_fits(
+    y: ArrayLike, weights: ArrayLike, n_grid: int
+) -> tuple[Array, Array, NDArray[np.bool_]]:
     """Ellipsoids through too few points to fix one: the pencil of the design's two smallest
     right singular vectors, sampled at ``n_grid`` members.
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,17 +14,20 @@ from ..errors import InputError
 from .columns import explicit_columns, recognise_columns
 from .readers import Table, _data_lines, _sniff_delimiter, _split, read_table, to_float
 
+if TYPE_CHECKING:
+    from ..calibration import Calibration
+
 __all__ = ["apply_to_file"]
 
 Array = NDArray[np.float64]
 
 
-def _format(values: Array) -> np.ndarray:
+def _format(values: NDArray[np.generic]) -> NDArray[np.str_]:
     return np.char.mod("%.9g", values)
 
 
 def apply_to_file(
-    cal: Any,
+    cal: Calibration,
     src: str | Path,
     dst: str | Path,
     *,
@@ -53,7 +56,7 @@ def apply_to_file(
 
 
 def _apply_csv(
-    cal: Any,
+    cal: Calibration,
     src: Path,
     dst: Path,
     sensors: list[str],
@@ -136,7 +139,7 @@ def _columns_for_apply(
 
 
 def _apply_table(
-    cal: Any,
+    cal: Calibration,
     table: Table,
     dst: Path,
     sensors: list[str],

@@ -31,7 +31,7 @@ class Log:
     mag: Array | None
     gyro: Array | None
     time: Array | None
-    pose: np.ndarray | None
+    pose: NDArray[np.generic] | None
     index: NDArray[np.int64]
     used: dict[str, list[str]]
     names: list[str]

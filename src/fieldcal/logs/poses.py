@@ -4,7 +4,7 @@ pose's orientation label (revisits of one orientation share one)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,9 +13,21 @@ from ..errors import InputError
 from .log import Log
 from .stillness import StillResult, detect_still
 
-__all__ = ["PoseSet", "orientation_labels", "poses_from_log", "poses_orientations"]
+__all__ = ["PoseEntry", "PoseSet", "orientation_labels", "poses_from_log", "poses_orientations"]
 
 Array = NDArray[np.float64]
+
+
+class PoseEntry(TypedDict, total=False):
+    """One pose found in a log, as written to the JSON's ``poses`` list and the summary."""
+
+    label: str  # the pose column's value (grouped logs)
+    start: int  # first data row of the pose in the file
+    stop: int  # one past its last data row
+    pieces: list[list[int]]  # [start, stop) runs merged across a short disturbance
+    samples: int
+    std: float | None  # RMS per-axis standard deviation of its readings (None: one sample)
+    orientation: int  # revisits of one orientation share a label
 
 
 @dataclass
@@ -24,7 +36,7 @@ class PoseSet:
 
     accel: list[Array] | None
     mag: list[Array] | None
-    entries: list[dict[str, Any]]
+    entries: list[PoseEntry]
     detection: StillResult | None
     rate: float | None
 
@@ -54,7 +66,7 @@ def _samples(
     return round(value * rate) if rate else round(value)
 
 
-def _label(value: Any) -> str:
+def _label(value: object) -> str:
     if isinstance(value, (float, np.floating)) and float(value).is_integer():
         return str(int(value))
     return str(value)
@@ -99,7 +111,10 @@ def poses_from_log(
     """
     hz = _rate(log, rate)
     detection = None
-    entries: list[dict[str, Any]] = []
+    entries: list[PoseEntry] = []
+    ref = log.accel if log.accel is not None else log.mag
+    if ref is None:
+        raise InputError(f"{log.path}: the log has neither accelerometer nor magnetometer data")
     if log.pose is not None:
         groups, labels = _grouped(log)
         for rows, label in zip(groups, labels, strict=True):
@@ -111,11 +126,10 @@ def poses_from_log(
                 }
             )
     else:
-        source = log.accel if log.accel is not None else log.mag
         w = _samples(window, 0.5, 25, hz)
         min_samples = _samples(min_still, 1.0, 50, hz)
         detection = detect_still(
-            source,
+            ref,
             log.gyro,
             window=w,
             min_samples=min_samples,
@@ -133,7 +147,10 @@ def poses_from_log(
             )
         groups = [s.rows for s in detection.segments]
         for s in detection.segments:
-            entry = {"start": int(log.index[s.start]), "stop": int(log.index[s.stop - 1]) + 1}
+            entry: PoseEntry = {
+                "start": int(log.index[s.start]),
+                "stop": int(log.index[s.stop - 1]) + 1,
+            }
             if s.pieces:  # runs of one pose merged across a short disturbance, left out
                 entry["pieces"] = [
                     [int(log.index[a]), int(log.index[b - 1]) + 1] for a, b in s.pieces
@@ -141,7 +158,6 @@ def poses_from_log(
             entries.append(entry)
     for entry, rows in zip(entries, groups, strict=True):
         entry["samples"] = len(rows)
-        ref = log.accel if log.accel is not None else log.mag
         entry["std"] = float(np.sqrt(np.mean(ref[rows].var(axis=0)))) if len(rows) > 1 else None
     poses = PoseSet(
         accel=None if log.accel is None else [log.accel[r] for r in groups],

@@ -30,7 +30,7 @@ class Table:
 
     path: str
     names: list[str]
-    columns: dict[str, np.ndarray]
+    columns: dict[str, NDArray[np.generic]]
 
     @property
     def n_rows(self) -> int:
@@ -39,14 +39,14 @@ class Table:
     def numeric(self, name: str) -> Array:
         """Column ``name`` as floats; a one-line error naming the first non-numeric value."""
         values = self.columns[name]
-        if values.dtype.kind == "f":
-            return values
+        if values.dtype.kind == "f":  # float32 from .npz or .parquet too
+            return values.astype(np.float64, copy=False)
         if values.dtype.kind in "iub":
             return values.astype(float)
         return to_float(values, name, self.path)
 
 
-def to_float(values: np.ndarray, name: str, path: str, first_row: int = 0) -> Array:
+def to_float(values: NDArray[np.generic], name: str, path: str, first_row: int = 0) -> Array:
     text = np.char.strip(values.astype(str))
     text = np.where(text == "", "nan", text)  # an empty field is a missing value, not text
     try:
@@ -117,7 +117,7 @@ def _read_csv(path: Path) -> Table:
             f"fix the row ({ragged.size} such row(s)) or cut the file"
         )
     cells = np.array(body, dtype=str)
-    columns: dict[str, np.ndarray] = {}
+    columns: dict[str, NDArray[np.generic]] = {}
     for j, name in enumerate(header):
         column = np.char.strip(cells[:, j])
         filled = np.where(column == "", "nan", column)
@@ -129,7 +129,7 @@ def _read_csv(path: Path) -> Table:
 
 
 def _read_npz(path: Path) -> Table:
-    columns: dict[str, np.ndarray] = {}
+    columns: dict[str, NDArray[np.generic]] = {}
     with np.load(path, allow_pickle=False) as data:
         for key in data.files:
             array = np.asarray(data[key])

@@ -75,7 +75,7 @@ class StillResult:
         """The threshold as a standard deviation per axis (same units as the readings)."""
         return float(np.sqrt(self.threshold / 3.0))
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, float]:
         return {
             "count": len(self.segments),
             "threshold_var": self.threshold,

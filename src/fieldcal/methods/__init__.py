@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import importlib
 import inspect
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -68,7 +68,7 @@ class Method:
         fit: Callable[..., Calibration] = importlib.import_module(self.module).fit
         return fit
 
-    def options(self) -> dict[str, Any]:
+    def options(self) -> dict[str, object]:
         """The method's options and their defaults, from ``fit``'s signature."""
         params = inspect.signature(self.load()).parameters.values()
         return {
@@ -77,7 +77,7 @@ class Method:
             if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in PROTOCOL
         }
 
-    def check_options(self, options: dict[str, Any]) -> None:
+    def check_options(self, options: Mapping[str, object]) -> None:
         """One-line ``ValueError`` for an option ``fit`` does not take."""
         known = self.options()
         unknown = sorted(set(options) - set(known))

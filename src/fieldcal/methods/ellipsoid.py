@@ -29,11 +29,11 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.spatial.transform import Rotation
 
 from ..calibration import Calibration, SensorCalibration
@@ -53,7 +53,7 @@ from ..geometry.rotations import (
     rotation_angle_deg,
     wahba,
 )
-from ..stats.poses import PoseStats
+from ..stats.poses import PoseStats, Samples, SensorStats
 
 __all__ = [
     "MIN_POSES",
@@ -212,7 +212,7 @@ def fit_ellipsoid(samples: ArrayLike, *, faithful: bool = False) -> EllipsoidFit
 def _ellipsoid_result(x: Array, quadric: Quadric, fallback: bool, faithful: bool) -> EllipsoidFit:
     L = reverse_triangular_factor(quadric.shape)  # Eq. 13
     finite = bool(np.all(np.isfinite(L)))
-    gain = np.linalg.inv(L) if finite else np.full((3, 3), np.nan)
+    gain = cast(Array, np.linalg.inv(L)) if finite else np.full((3, 3), np.nan)
     with np.errstate(invalid="ignore"):
         norms = np.linalg.norm((x - quadric.center) @ L.T, axis=1)  # Eq. 14
     return EllipsoidFit(
@@ -412,7 +412,9 @@ def _initial_beta(inclination_deg: float | None) -> float:
     return float(np.cos(np.radians(90.0 + inclination_deg)))
 
 
-def _alignment(R: Array, beta: float, result: Any, faithful: bool, start: str) -> Alignment:
+def _alignment(
+    R: Array, beta: float, result: OptimizeResult, faithful: bool, start: str
+) -> Alignment:
     xyzw = Rotation.from_matrix(R).as_quat()
     q = np.array([xyzw[3], *xyzw[:3]])
     q = q if q[0] >= 0 else -q
@@ -518,7 +520,7 @@ def align(
 
 
 # =========================================================================== fieldcal method
-def _continuous(samples: Any, name: str) -> Array | None:
+def _continuous(samples: Samples | None, name: str) -> Array | None:
     """One sensor's continuous input: an (n, 3) array, or per-pose arrays stacked."""
     if samples is None:
         return None
@@ -533,7 +535,7 @@ def _continuous(samples: Any, name: str) -> Array | None:
     raise ValueError(f"{name}: expected an (n, 3) array of samples, got {type(samples).__name__}")
 
 
-def _paired_pose_samples(raw_accel: Any, raw_mag: Any) -> tuple[Array, Array]:
+def _paired_pose_samples(raw_accel: Samples, raw_mag: Samples) -> tuple[Array, Array]:
     """Sample pairs pose by pose; a pose with unequal counts keeps the first min(n_a, n_m)."""
     pairs = [
         (np.asarray(a, float).reshape(-1, 3), np.asarray(m, float).reshape(-1, 3))
@@ -560,7 +562,7 @@ def _minimal_rotations(body: Array, reference: Array) -> Array:
     return exp_so3(unit * np.arctan2(sin, cos)[:, None])
 
 
-def _noise(stats_sensor: Any, x: Array, fit_: EllipsoidFit) -> tuple[Array, str]:
+def _noise(stats_sensor: SensorStats | None, x: Array, fit_: EllipsoidFit) -> tuple[Array, str]:
     """Eq. 7 when the poses give it; otherwise isotropic from the radial residuals.
 
     For isotropic noise the radial component of a sample's error has the full variance σ²;
@@ -576,8 +578,8 @@ def _noise(stats_sensor: Any, x: Array, fit_: EllipsoidFit) -> tuple[Array, str]
 
 
 def _validate_options(
-    faithful: Any,
-    inclination_deg: Any,
+    faithful: object,
+    inclination_deg: float | None,
     fit_on: str,
     continuous: bool,
 ) -> None:
@@ -606,7 +608,7 @@ class _Inputs:
     pairs: tuple[Array, Array] | None
 
 
-def _continuous_inputs(raw_accel: Any, raw_mag: Any) -> _Inputs:
+def _continuous_inputs(raw_accel: Samples | None, raw_mag: Samples | None) -> _Inputs:
     xa, xm = _continuous(raw_accel, "accel"), _continuous(raw_mag, "mag")
     if xa is None and xm is None:
         raise ValueError("no data: pass accelerometer samples, magnetometer samples, or both")
@@ -620,7 +622,9 @@ def _continuous_inputs(raw_accel: Any, raw_mag: Any) -> _Inputs:
     return _Inputs(samples, samples, {"accel": None, "mag": None}, pairs)
 
 
-def _pose_inputs(stats: PoseStats, raw_accel: Any, raw_mag: Any, fit_on: str) -> _Inputs:
+def _pose_inputs(
+    stats: PoseStats, raw_accel: Samples | None, raw_mag: Samples | None, fit_on: str
+) -> _Inputs:
     if stats.n_poses < MIN_POSES:
         raise ValueError(
             f"{stats.n_poses} poses given; the ellipsoid of Eq. 8 has 9 free parameters, so "
@@ -633,13 +637,14 @@ def _pose_inputs(stats: PoseStats, raw_accel: Any, raw_mag: Any, fit_on: str) ->
     }
     if fit_on == "pose_means":
         # Eq. 5 means weighted by Δ_i: the noise no longer inflates the fitted radii
-        points = {k: None if v is None else getattr(stats, k).means for k, v in raw.items()}
+        points = {k: None if v is None else stats.sensor(k).means for k, v in raw.items()}
         weights = {
-            k: None if v is None else getattr(stats, k).counts.astype(float) for k, v in raw.items()
+            k: None if v is None else stats.sensor(k).counts.astype(float) for k, v in raw.items()
         }
-        both = stats.accel is not None and stats.mag is not None
-        pairs = (stats.accel.means, stats.mag.means) if both else None
-        return _Inputs(samples, points, weights, pairs)
+        a, m = stats.accel, stats.mag
+        return _Inputs(
+            samples, points, weights, None if a is None or m is None else (a.means, m.means)
+        )
     pairs = None
     if raw_accel is not None and raw_mag is not None:
         pairs = _paired_pose_samples(raw_accel, raw_mag)
@@ -649,8 +654,8 @@ def _pose_inputs(stats: PoseStats, raw_accel: Any, raw_mag: Any, fit_on: str) ->
 def fit(
     stats: PoseStats | None,
     *,
-    raw_accel: Any,
-    raw_mag: Any,
+    raw_accel: Samples | None,
+    raw_mag: Samples | None,
     body_frame: str = "accel",
     faithful: bool = False,
     inclination_deg: float | None = None,
@@ -675,17 +680,19 @@ def fit(
         if stats is None
         else _pose_inputs(stats, raw_accel, raw_mag, fit_on)
     )
-    fits = {
-        name: None
-        if inputs.points[name] is None
-        else _sensor_fit(inputs.points[name], faithful, name, inputs.weights[name])
-        for name in ("accel", "mag")
-    }
+    fits: dict[str, EllipsoidFit | None] = {}
+    for name in ("accel", "mag"):
+        points = inputs.points[name]
+        fits[name] = (
+            None if points is None else _sensor_fit(points, faithful, name, inputs.weights[name])
+        )
+    fit_a, fit_m = fits["accel"], fits["mag"]
     alignment = None
-    if inputs.pairs is not None:
+    # pairs exist only when both sensors were fitted
+    if inputs.pairs is not None and fit_a is not None and fit_m is not None:
         alignment = align(
-            fits["accel"].correct(inputs.pairs[0]),
-            fits["mag"].correct(inputs.pairs[1]),
+            fit_a.correct(inputs.pairs[0]),
+            fit_m.correct(inputs.pairs[1]),
             faithful=faithful,
             inclination_deg=inclination_deg,
         )
@@ -694,7 +701,7 @@ def fit(
                 f"the faithful alignment gave beta = {alignment.beta:.6g} (|beta| > 1, no angle); "
                 "use faithful=False, which keeps |beta| <= 1"
             )
-    options_used = {
+    options_used: dict[str, object] = {
         "faithful": faithful,
         "inclination_deg": None if inclination_deg is None else float(inclination_deg),
         "fit_on": fit_on,
@@ -739,13 +746,13 @@ def _pose_rotations(
     """
     body, world, weights = [], [], []
     for name in ("accel", "mag"):
-        L = maps[name]
-        if L is None or fields[name] is None:
+        L, fit_, field_ = maps[name], fits[name], fields[name]
+        if L is None or fit_ is None or field_ is None:
             continue
-        sensor_stats = getattr(stats, name)
-        v = (sensor_stats.means - fits[name].center) @ L.T
+        sensor_stats = stats.sensor(name)
+        v = (sensor_stats.means - fit_.center) @ L.T
         body.append(v / np.linalg.norm(v, axis=1, keepdims=True))
-        world.append(np.broadcast_to(fields[name], v.shape))
+        world.append(np.broadcast_to(field_, v.shape))
         weights.append(sensor_stats.counts / (np.trace(L @ noise[name] @ L.T) / 3.0))
     if len(body) == 1:
         return _minimal_rotations(body[0], world[0][0])
@@ -771,33 +778,34 @@ def _calibration(
     alignment: Alignment | None,
     samples: dict[str, Array | None],
     body_frame: str,
-    options: dict[str, Any],
+    options: dict[str, object],
 ) -> Calibration:
     """The seed's numbers as fieldcal's model (``gain = (R_mis L)⁻¹``, ``bias = c``), in
     fieldcal's gauge, with rotations, noise and the Eq. 8 certificate when poses are given."""
     maps = _body_maps(fits, alignment)
     fields = _fields(fits, alignment)
-    noise, sources = {}, {}
+    noise: dict[str, Array] = {}
+    sources: dict[str, str] = {}
     for name, sensor_fit in fits.items():
-        if sensor_fit is not None:
-            sensor_stats = None if stats is None else getattr(stats, name)
-            noise[name], sources[name] = _noise(sensor_stats, samples[name], sensor_fit)
+        x = samples[name]
+        if sensor_fit is not None and x is not None:  # a fit has its samples
+            sensor_stats = None if stats is None else stats.sensor(name)
+            noise[name], sources[name] = _noise(sensor_stats, x, sensor_fit)
     rotations = (
         np.zeros((0, 3, 3)) if stats is None else _pose_rotations(stats, fits, maps, noise, fields)
     )
-    gains = {k: None if L is None else np.linalg.inv(L) for k, L in maps.items()}
+    inverse = {k: None if L is None else cast(Array, np.linalg.inv(L)) for k, L in maps.items()}
     R, Ka, Km, gravity, magnetic = canonical_gauge(
-        rotations, gains["accel"], gains["mag"], fields["accel"], fields["mag"], body_frame
+        rotations, inverse["accel"], inverse["mag"], fields["accel"], fields["mag"], body_frame
     )
-    gains = {"accel": Ka, "mag": Km}
-    sensors = {
-        name: None
-        if fits[name] is None
-        else SensorCalibration(
-            gains[name], fits[name].center, noise[name], noise_source=sources[name]
+    sensors: dict[str, SensorCalibration | None] = {}
+    for name, gain in (("accel", Ka), ("mag", Km)):
+        sensor_fit = fits[name]
+        sensors[name] = (
+            None
+            if sensor_fit is None or gain is None
+            else SensorCalibration(gain, sensor_fit.center, noise[name], noise_source=sources[name])
         )
-        for name in ("accel", "mag")
-    }
     cal = Calibration(
         accel=sensors["accel"],
         mag=sensors["mag"],

@@ -24,6 +24,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,14 +67,16 @@ class Data:
 
     @classmethod
     def from_stats(cls, stats: PoseStats) -> Data:
-        a, m = stats.accel, stats.mag
+        a, m = stats.sensor("accel"), stats.sensor("mag")
+        if a.cov is None or m.cov is None:
+            raise ValueError("the greedy algorithm needs Eq. 7's covariance of both sensors")
         return cls(
             mean_a=np.asarray(a.means, float),
             mean_m=np.asarray(m.means, float),
             count_a=np.asarray(a.counts, float),
             count_m=np.asarray(m.counts, float),
-            weight_a=np.linalg.inv(a.cov),
-            weight_m=np.linalg.inv(m.cov),
+            weight_a=cast(Array, np.linalg.inv(a.cov)),
+            weight_m=cast(Array, np.linalg.inv(m.cov)),
         )
 
 
@@ -278,7 +281,7 @@ def _armijo(
     J: Array,
     grad: Array,
     step: Array,
-    active: Array,
+    active: NDArray[np.bool_],
 ) -> tuple[Array, Array, Array, Array]:
     """Backtrack each active pose's step until Eq. 9 drops by 1e-4 · t |∇|² (Armijo).
 
@@ -418,7 +421,9 @@ def run_greedy(
 _M = HALF_TURN_NORTH  # half turn about the world x axis: M g = −g, M h = (h_x, 0, −h_z)
 
 
-def to_fieldcal_gauge(state: GreedyState, body_frame: str = "accel") -> tuple[Array, ...]:
+def to_fieldcal_gauge(
+    state: GreedyState, body_frame: str = "accel"
+) -> tuple[Array, Array, Array, Array, Array, bool]:
     """Re-express the paper's gauge in fieldcal's: unit fields, SPD gain for ``body_frame``.
 
     Sec. 4.3 only makes ``K_a`` symmetric (``U = diag(±1, ±1, ±1)``). A symmetric ``K_a`` with
@@ -507,6 +512,8 @@ def fit(
         rotation_max_iterations=int(rotation_max_iterations),
     )
     R, Ka, Km, g, h, flipped = to_fieldcal_gauge(result.state, body_frame)
+    cov_a, cov_m = stats.sensor("accel").cov, stats.sensor("mag").cov
+    assert cov_a is not None and cov_m is not None  # checked above
     if not result.converged:
         warnings.warn(
             f"greedy: stopped at the cap of {max_iterations} iterations before "
@@ -514,8 +521,8 @@ def fit(
             stacklevel=3,
         )
     return Calibration(
-        accel=SensorCalibration(Ka, result.state.accel_bias, stats.sensor("accel").cov),
-        mag=SensorCalibration(Km, result.state.mag_bias, stats.sensor("mag").cov),
+        accel=SensorCalibration(Ka, result.state.accel_bias, cov_a),
+        mag=SensorCalibration(Km, result.state.mag_bias, cov_m),
         gravity=g,
         magnetic=h,
         rotations=R,

@@ -46,10 +46,10 @@ import base64
 import html
 import io as _io
 import math
-from collections.abc import Callable
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,9 +58,15 @@ from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log
 
+if TYPE_CHECKING:
+    from matplotlib.artist import Artist
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure as MplFigure
+
 __all__ = ["write_report"]
 
 Array = NDArray[np.float64]
+_Scalar = TypeVar("_Scalar", bound=np.generic)
 _MAX_POINTS = 2500  # enough to see the shape of a sphere, small enough for a light HTML file
 _TIMELINE_POINTS = 3000  # per line: the envelope of 1500 buckets
 _TIMELINE_LABELS = 40  # pose numbers written over the timeline, at most
@@ -175,7 +181,7 @@ def _inverse_gain_std(sensor: SensorCalibration) -> Array | None:
 
 
 # ----------------------------------------------------------------------------- figures
-def _figure_class() -> Callable[..., Any]:
+def _figure_class() -> type[MplFigure]:
     """matplotlib's Figure: the one place matplotlib is imported (it is an optional extra)."""
     try:
         from matplotlib.figure import Figure
@@ -184,7 +190,7 @@ def _figure_class() -> Callable[..., Any]:
     return Figure
 
 
-def _thin(x: Array, rng: np.random.Generator) -> Array:
+def _thin(x: NDArray[_Scalar], rng: np.random.Generator) -> NDArray[_Scalar]:
     return x if len(x) <= _MAX_POINTS else x[rng.choice(len(x), _MAX_POINTS, replace=False)]
 
 
@@ -200,8 +206,8 @@ def _envelope(x: Array, y: Array) -> tuple[Array, Array]:
 
 
 def _timeline_figure(
-    Figure: Callable[..., Any], log: Log, sensors: list[str], poses: list[_Pose]
-) -> Any:
+    Figure: type[MplFigure], log: Log, sensors: Sequence[str], poses: list[_Pose]
+) -> MplFigure:
     if log.time is not None:
         x, xlabel = np.asarray(log.time, dtype=float), "time (s)"
     else:
@@ -251,8 +257,8 @@ def _expected_error(sensor: SensorCalibration, samples: int | None) -> float:
 
 
 def _residual_figure(
-    Figure: Callable[..., Any], cal: Calibration, sensors: list[str], poses: list[_Pose]
-) -> Any:
+    Figure: type[MplFigure], cal: Calibration, sensors: Sequence[str], poses: list[_Pose]
+) -> MplFigure:
     n = len(poses)
     fig = Figure(figsize=(11, 0.8 + 2.6 * len(sensors)))
     axes = fig.subplots(len(sensors), 1, sharex=True, squeeze=False)[:, 0]
@@ -260,7 +266,7 @@ def _residual_figure(
     for ax, s in zip(axes, sensors, strict=True):
         sensor = cal.sensor(s)
         norms = np.array(
-            [np.nan if p.residual[s] is None else np.linalg.norm(p.residual[s]) for p in poses]
+            [np.nan if (r := p.residual[s]) is None else np.linalg.norm(r) for p in poses]
         )
         ax.bar(position, norms, color="tab:blue", width=0.7, label="|pose mean − model|")
         expected = np.array([_expected_error(sensor, p.samples[s]) for p in poses])
@@ -308,9 +314,9 @@ def _residual_figure(
     return fig
 
 
-def _legend_on_top(fig: Any, axes: Any, height: float) -> None:
+def _legend_on_top(fig: MplFigure, axes: Iterable[Axes], height: float) -> None:
     """One legend for all panels, under the title, so it hides no data."""
-    entries: dict[str, Any] = {}
+    entries: dict[str, Artist] = {}
     for ax in axes:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             entries.setdefault(label, handle)
@@ -326,8 +332,8 @@ def _legend_on_top(fig: Any, axes: Any, height: float) -> None:
 
 
 def _sphere_figure(
-    Figure: Callable[..., Any], name: str, raw: Array, calibrated: Array, radius: float
-) -> Any:
+    Figure: type[MplFigure], name: str, raw: Array, calibrated: Array, radius: float
+) -> MplFigure:
     fig = Figure(figsize=(11, 7))
     axes = fig.subplots(2, 3)
     circle = np.linspace(0, 2 * np.pi, 200)
@@ -347,8 +353,8 @@ def _sphere_figure(
 
 
 def _coverage_figure(
-    Figure: Callable[..., Any], directions: dict[str, Array], poses: list[_Pose]
-) -> Any:
+    Figure: type[MplFigure], directions: Mapping[str, Array], poses: list[_Pose]
+) -> MplFigure:
     fig = Figure(figsize=(10, 4.5))
     colors = [_FITTED if p.rejected is None else _REJECTED for p in poses]
     for k, (name, d) in enumerate(directions.items()):
@@ -365,12 +371,12 @@ def _coverage_figure(
 
 
 def _histogram_figure(
-    Figure: Callable[..., Any],
-    norms: dict[str, tuple[Array, Array]],
-    expected: dict[str, float],
+    Figure: type[MplFigure],
+    norms: Mapping[str, tuple[Array, Array]],
+    expected: Mapping[str, float],
     dip: Array | None,
     cal: Calibration,
-) -> Any:
+) -> MplFigure:
     panels = len(norms) + (dip is not None)
     fig = Figure(figsize=(4 * panels, 3.5))
     axes = np.atleast_1d(fig.subplots(1, panels))
@@ -641,7 +647,7 @@ def write_report(
     Figure = _figure_class()
     rng = np.random.default_rng(0)
     poses = _poses(cal, log)
-    sensors = [
+    sensors: list[str] = [
         s
         for s in SENSORS
         if getattr(cal, s) is not None and getattr(log, s) is not None and log.n > 0
@@ -657,7 +663,7 @@ def write_report(
     rejected_rows = [p.rows for p in located if p.rejected is not None]
     dropped = np.concatenate(rejected_rows) if rejected_rows else np.zeros(0, dtype=np.int64)
 
-    figures: dict[str, Any] = {"timeline": _timeline_figure(Figure, log, sensors, poses)}
+    figures: dict[str, MplFigure] = {"timeline": _timeline_figure(Figure, log, sensors, poses)}
     with_residuals = [s for s in sensors if any(p.residual[s] is not None for p in poses)]
     if with_residuals:
         figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)

@@ -9,12 +9,13 @@ and a gyroscope reads the turn rate, as a hand-held recording would show.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.rotations import exp_so3, log_so3
-from .session import Session, simulate
+from .session import Preset, Session, simulate
 
 __all__ = ["ContinuousLog", "simulate_continuous"]
 
@@ -44,7 +45,7 @@ def simulate_continuous(
     move_seconds: tuple[float, float] = (1.0, 2.0),
     shake: float = 0.05,
     gyro_noise: float = 0.01,
-    **options: object,
+    **options: Unpack[Preset],
 ) -> ContinuousLog:
     """Simulate a time-stamped log with still poses separated by motion.
 
@@ -61,7 +62,7 @@ def simulate_continuous(
     gyro_noise : float
         Standard deviation of the gyroscope's noise, rad/s.
     """
-    session = simulate(preset, seed=seed, **options)  # type: ignore[arg-type]
+    session = simulate(preset, seed=seed, **options)
     drawn = session.drawn
     # a separate stream, so the still samples are exactly those of simulate(seed)
     rng = np.random.default_rng(None if seed is None else [seed, 1])

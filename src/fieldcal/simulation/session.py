@@ -9,23 +9,64 @@ gains ``I + δK`` with ``δK_ij ~ U[−0.1, 0.1]``, and covariances ``α (…)``
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict, Unpack
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .._frozen import ArrayDataclass
 from ..calibration import Calibration, SensorCalibration
 from ..geometry.gauge import canonical_gauge
 from ..geometry.rotations import exp_so3, random_rotations
 
-__all__ = ["PRESETS", "Session", "simulate"]
+__all__ = ["PRESETS", "Drawn", "Preset", "Session", "SimulateOptions", "simulate"]
 
 Array = NDArray[np.float64]
 
+
+class SimulateOptions(TypedDict, total=False):
+    """The drawing ranges :func:`simulate` takes as keywords (described there)."""
+
+    samples: tuple[int, int]
+    gravity_z: tuple[float, float]
+    field_x: tuple[float, float]
+    field_z: tuple[float, float]
+    dip_deg: tuple[float, float] | None
+    bias: float
+    gain_spread: float
+    noise_alpha: tuple[float, float]
+    pose_distribution: str
+    mag_axes: ArrayLike | None
+    pose_noise: float | tuple[float, float]
+
+
+class Preset(SimulateOptions, total=False):
+    """A preset: the number of poses and every drawing range."""
+
+    n_poses: int
+
+
+class Drawn(TypedDict, total=False):
+    """The parameters of a :class:`Session` exactly as drawn (the paper's gauge)."""
+
+    accel_gain: Array
+    mag_gain: Array
+    accel_bias: Array
+    mag_bias: Array
+    gravity: Array
+    magnetic: Array
+    rotations: Array
+    accel_cov: Array
+    mag_cov: Array
+    counts: NDArray[np.int64]
+    seed: int | None
+    preset: str
+
+
 #: Drawing ranges per preset. Every key can be overridden by a keyword of :func:`simulate`.
-PRESETS: dict[str, dict[str, Any]] = {
+PRESETS: dict[str, Preset] = {
     "paper": {
         "n_poses": 15,
         "samples": (400, 600),
@@ -81,7 +122,7 @@ class Session(ArrayDataclass):
     accel: list[Array]
     mag: list[Array]
     truth: Calibration
-    drawn: dict[str, Any] = field(default_factory=dict)
+    drawn: Drawn = field(default_factory=lambda: Drawn())
 
     @property
     def counts(self) -> NDArray[np.int64]:
@@ -116,7 +157,7 @@ def simulate(
     *,
     seed: int | None = None,
     n_poses: int | None = None,
-    **overrides: Any,
+    **overrides: Unpack[SimulateOptions],
 ) -> Session:
     """Draw a synthetic session.
 
@@ -140,11 +181,11 @@ def simulate(
     """
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
-    params = dict(PRESETS[preset])
-    unknown = set(overrides) - set(params)
+    known = PRESETS[preset]
+    unknown = set(overrides) - set(known)
     if unknown:
-        raise ValueError(f"unknown simulate option(s) {sorted(unknown)}; known: {sorted(params)}")
-    params.update(overrides)
+        raise ValueError(f"unknown simulate option(s) {sorted(unknown)}; known: {sorted(known)}")
+    params: Preset = {**known, **overrides}
     if n_poses is not None:
         params["n_poses"] = n_poses
     n = int(params["n_poses"])
@@ -207,7 +248,7 @@ def simulate(
         method="truth",
         options={"preset": preset, "seed": seed, **_jsonable(params)},
     )
-    drawn = {
+    drawn: Drawn = {
         "accel_gain": Ka,
         "mag_gain": Km,
         "accel_bias": ba,
@@ -224,5 +265,5 @@ def simulate(
     return Session(accel=accel, mag=mag, truth=truth, drawn=drawn)
 
 
-def _jsonable(params: dict[str, Any]) -> dict[str, Any]:
+def _jsonable(params: Mapping[str, object]) -> dict[str, object]:
     return {k: (np.asarray(v).tolist() if v is not None else None) for k, v in params.items()}

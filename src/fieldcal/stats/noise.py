@@ -41,7 +41,7 @@ def noise_covariance(value: object, name: str) -> Array:
     if isinstance(value, (str, bytes, bool)):
         raise ValueError(f"noise for {name} must be a number or an array, got {value!r}")
     try:
-        array = np.asarray(value, dtype=float)
+        array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"noise for {name} must be a number or an array, got {value!r}") from None
     if array.ndim == 0 or array.shape == (3,):
@@ -73,7 +73,7 @@ def pose_noise_value(value: object, name: str) -> float | None:
             f"units, got {value!r}"
         )
     try:
-        std = float(value)  # type: ignore[arg-type]
+        std = float(value)  # type: ignore[arg-type]  # float() itself is the check
     except (TypeError, ValueError):
         raise ValueError(
             f"pose_noise for {name} must be 'auto', 'none' or a standard deviation in raw "

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,6 +19,7 @@ from .trimming import trim_unsteady
 
 __all__ = [
     "PoseStats",
+    "Samples",
     "SensorStats",
     "as_pose_list",
     "check_spread",
@@ -26,6 +28,11 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+
+#: One sensor's raw input as a user gives it: N per-pose (n_i, 3) arrays (any sequence of
+#: array-likes) or an (N, n, 3) array; methods that take continuous input also accept one
+#: (n, 3) array. Checked at run time (:func:`summarize`), with a one-line error.
+Samples: TypeAlias = Sequence[ArrayLike] | NDArray[np.generic]
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,6 +17,8 @@ each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattic
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -107,7 +109,7 @@ def _heading_error(cal: Calibration) -> float | None:
             noise = deltas[:, 24 + 3 * k : 27 + 3 * k]
             Kp = K + d[:, :9].reshape(-1, 3, 3)
             rhs = raw[name][None] + (noise - b - d[:, 9:])[:, None, :]  # (P, H, 3)
-            out[name] = np.linalg.solve(Kp[:, None], rhs[..., None])[..., 0]
+            out[name] = cast(Array, np.linalg.solve(Kp[:, None], rhs[..., None])[..., 0])
         return _heading(out["accel"], out["mag"])
 
     scale = max(float(np.abs(base["accel"][0]).max()), float(np.abs(base["mag"][0]).max()))

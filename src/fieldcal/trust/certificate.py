@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+from numpy.typing import NDArray
 from scipy.special import chdtrc
 
 from ..calibration import Diagnostics
@@ -27,14 +26,16 @@ def certify(ev: Evaluation, status: str) -> Diagnostics:
     return Diagnostics(statistic, dof, p_value, per_pose, status)
 
 
-def pose_table(ev: Evaluation, stats: PoseStats, index: np.ndarray) -> list[dict[str, Any]]:
+def pose_table(
+    ev: Evaluation, stats: PoseStats, index: NDArray[np.int64]
+) -> list[dict[str, object]]:
     """One dict per pose in the fit: caller's index, samples (and trimmed), cost, share and the
     residual of each sensor in raw units (the pose mean minus the model)."""
     cost = ev.pose_cost
     total = float(cost.sum())
     rows = []
     for i in range(stats.n_poses):
-        row: dict[str, Any] = {"index": int(index[i])}
+        row: dict[str, object] = {"index": int(index[i])}
         for s in stats.sensors:
             sensor = stats.sensor(s)
             row[f"{s}_samples"] = int(sensor.counts[i])

@@ -19,17 +19,16 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc
 
-from ..calibration import Calibration, ParameterCovariance, RejectedPose
+from ..calibration import Calibration, ParameterCovariance, RejectedPose, SensorCalibration
 from ..methods import METHODS, Method
 from ..stats.noise import wishart_std
-from ..stats.poses import PoseStats
+from ..stats.poses import PoseStats, Samples
 from .accuracy import predict_accuracy
 from .certificate import certify, pose_table
 from .evaluate import Evaluation, evaluate
@@ -48,7 +47,7 @@ __all__ = ["fit_trusted"]
 Array = NDArray[np.float64]
 
 
-def _subset(samples: Any, keep: NDArray[np.int64]) -> Any:
+def _subset(samples: Samples | None, keep: NDArray[np.int64]) -> Samples | None:
     if samples is None or (isinstance(samples, np.ndarray) and samples.ndim == 2):
         return samples
     return [samples[int(i)] for i in keep]
@@ -73,9 +72,9 @@ class _Runner:
     def __init__(
         self,
         method: Method,
-        raw: dict[str, Any],
+        raw: Mapping[str, Samples | None],
         body_frame: str,
-        options: dict[str, Any],
+        options: Mapping[str, object],
     ) -> None:
         self.method = method
         self.fit = method.load()
@@ -149,10 +148,10 @@ def fit_trusted(
     method: Method,
     stats: PoseStats,
     *,
-    raw_accel: Any,
-    raw_mag: Any,
+    raw_accel: Samples | None,
+    raw_mag: Samples | None,
     body_frame: str,
-    options: dict[str, Any],
+    options: Mapping[str, object],
     sources: dict[str, str],
     pose_noise: dict[str, float | None],
     robust: bool,
@@ -239,13 +238,13 @@ def _finish(
     estimated = [s for s in noise.estimated if noise.variance[s] > 0]
     status = "pose noise estimated" if estimated else "ok"
     diagnostics = certify(ev, status)
-    sensors = {}
+    sensors: dict[str, SensorCalibration] = {}
     for s in stats.sensors:
         st = stats.sensor(s)
         one_sample = st.cov is None
         source = "residuals" if one_sample else sources.get(s, "scatter")
         noise_std = None
-        if source == "scatter":
+        if source == "scatter" and st.cov is not None:  # cov is None only when one_sample
             noise_std = wishart_std(st.cov, st.dof)
         elif source == "residuals":
             nu = max(ev_ml.dof_share()[s], 1.0)
@@ -279,7 +278,8 @@ def _finish(
         poses=tuple(pose_table(ev, stats, keep)),
         rejected=tuple(rejected),
         options=options,
-        **sensors,
+        accel=sensors.get("accel", cal.accel),
+        mag=sensors.get("mag", cal.mag),
     )
     found = Findings(
         n_total=n_total,

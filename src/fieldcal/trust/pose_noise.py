@@ -25,7 +25,6 @@ the data could hide.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -209,8 +208,3 @@ def noise_reported(sensor: SensorStats) -> Array:
     if sensor.cov is not None:
         return np.asarray(sensor.cov)
     return np.eye(3) * sensor.pose_var
-
-
-def replace_sensor_noise(cal: Calibration, name: str, **changes: object) -> Calibration:
-    sensor = cal.sensor(name)
-    return dataclasses.replace(cal, **{name: dataclasses.replace(sensor, **changes)})

@@ -186,7 +186,7 @@ def fit(
         s: SensorCalibration(
             gain=state.gains[s],
             bias=state.biases[s],
-            noise_cov=np.zeros((3, 3)) if stats.sensor(s).cov is None else stats.sensor(s).cov,
+            noise_cov=np.zeros((3, 3)) if (cov := stats.sensor(s).cov) is None else cov,
         )
         for s in sensors
     }

@@ -15,6 +15,7 @@ At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,7 +78,7 @@ def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     G = ne.V.shape[0]
     z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
     rhs = -(ne.gg - ne.W.reshape(-1, G).T @ z.ravel())
-    dg = np.linalg.solve(S, rhs)
+    dg = cast(Array, np.linalg.solve(S, rhs))
     dp = -(z + (Y @ dg))
     # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = −δᵀg + δᵀΛδ since (H + Λ)δ = −g
     pred = -(dg @ ne.gg + np.sum(dp * ne.gp)) + dg @ (damp_g * dg) + np.sum(damp_p * dp * dp)

@@ -17,6 +17,7 @@ per pose. With one sensor the rotation about its field is unobservable: each pos
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -111,12 +112,12 @@ def build_problem(stats: PoseStats, frame: str) -> Problem:
     for s in sensors:
         st = stats.sensor(s)
         covs = st.mean_covariances()
-        linv[s] = np.linalg.inv(np.linalg.cholesky(covs))
+        linv[s] = cast(Array, np.linalg.inv(np.linalg.cholesky(covs)))
         means[s] = np.asarray(st.means, dtype=float)
         ref = st.cov if st.cov is not None else np.eye(3) * st.pose_var
-        start_chol[s] = np.linalg.cholesky(ref)
+        start_chol[s] = cast(Array, np.linalg.cholesky(ref))
         start_weight[s] = 3.0 / np.einsum("ij,nji->n", np.linalg.inv(ref), covs)
-        start_mu[s] = np.linalg.solve(start_chol[s], means[s].T).T
+        start_mu[s] = cast(Array, np.linalg.solve(start_chol[s], means[s].T).T)
         size = 6 if s == frame else 9
         gs[s] = slice(offset, offset + size)
         bs[s] = slice(offset + size, offset + size + 3)
@@ -235,7 +236,7 @@ def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Arra
         dK = (SYM_MAP @ d).reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
         gains[s] = state.gains[s] + dK
         biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
-    dip = state.dip + (dg[problem.dip_index] if problem.joint else 0.0)
+    dip = state.dip + (dg[problem.dip_index] if problem.dip_index is not None else 0.0)
     omega = dp if basis is None else np.einsum("nij,nj->ni", basis, dp)
     return State(gains, biases, float(dip), exp_map(omega) @ state.rotations)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...calibration import Calibration
 from .common import NAMES, corrections, provenance
@@ -48,7 +49,7 @@ def c_float(x: float) -> str:
     return text + "f"
 
 
-def _floats(values: np.ndarray) -> str:
+def _floats(values: NDArray[np.float64]) -> str:
     return ", ".join(c_float(v) for v in values)
 
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import NDArray
 
-from ...calibration import SENSORS, Calibration
+from ...calibration import SENSORS, Calibration, SensorCalibration
 
 __all__ = ["NAMES", "corrections", "exact", "provenance"]
 
@@ -27,11 +29,12 @@ def corrections(cal: Calibration) -> list[tuple[str, Array, Array]]:
     list of (str, (3, 3) array, (3,) array)
         The correction ``v = inv(gain) @ (raw − bias)`` of each sensor the result has.
     """
-    out = []
+    out: list[tuple[str, Array, Array]] = []
     for name in SENSORS:
-        sensor = getattr(cal, name)
+        sensor: SensorCalibration | None = getattr(cal, name)
         if sensor is not None:
-            out.append((name, np.linalg.inv(sensor.gain), np.asarray(sensor.bias, dtype=float)))
+            inverse = cast(Array, np.linalg.inv(sensor.gain))
+            out.append((name, inverse, np.asarray(sensor.bias, dtype=float)))
     return out
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...calibration import Calibration
 from .common import NAMES, corrections, exact, provenance
@@ -14,7 +15,7 @@ FORMULA = "C = (D - b) * A, A = inv(gain).'"
 CONTENT = "`A_accel`, `b_accel`, `A_mag`, `b_mag` (D N×3, rows are readings; `b` 1×3)"
 
 
-def _matrix(M: np.ndarray) -> str:
+def _matrix(M: NDArray[np.float64]) -> str:
     return "[" + "; ".join(" ".join(exact(v) for v in row) for row in np.atleast_2d(M)) + "]"
 
 
