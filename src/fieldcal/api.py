@@ -21,6 +21,7 @@ from .calibration import Calibration
 from .methods import get as get_method
 from .stats.noise import noise_covariance, per_sensor, pose_noise_value
 from .stats.poses import PoseStats, Samples, summarize
+from .stats.scaling import normalise
 
 if TYPE_CHECKING:
     from threadpoolctl import ThreadpoolController
@@ -67,20 +68,31 @@ def _probability(value: object, name: str) -> float:
     return float(value)
 
 
-def _with_user_noise(stats: PoseStats, noise: object) -> tuple[PoseStats, dict[str, str]]:
-    """Replace Eq. 7's covariance by the user's where given; report each sensor's source."""
+def _with_user_noise(
+    stats: PoseStats, noise: object, scales: Mapping[str, float]
+) -> tuple[PoseStats, dict[str, str]]:
+    """Replace Eq. 7's covariance by the user's where given (in the readings' scaled units);
+    report each sensor's source."""
     given = per_sensor(noise, "noise") if noise is not None else {}
     sources: dict[str, str] = {}
     for name in stats.sensors:
         value = given.get(name)
         if value is not None:
             stats = stats.replace(
-                **{name: dataclasses.replace(stats.sensor(name), cov=noise_covariance(value, name))}
+                **{
+                    name: dataclasses.replace(
+                        stats.sensor(name), cov=noise_covariance(value, name) / scales[name] ** 2
+                    )
+                }
             )
             sources[name] = "user"
         else:
             sources[name] = "scatter" if stats.sensor(name).cov is not None else "residuals"
     return stats, sources
+
+
+def _scaled_variance(variance: float | None, scale: float) -> float | None:
+    return None if variance is None else variance / scale**2
 
 
 def _continuous(accel: object, mag: object) -> bool:
@@ -177,6 +189,11 @@ def calibrate(
         "trim": bool(trim),
     }
 
+    # every reading divided by an exact power of two: the fit sees numbers of order one in any
+    # unit, and the result is scaled back at the end
+    accel, accel_scale = normalise(accel, "accel")
+    mag, mag_scale = normalise(mag, "mag")
+    scales = {"accel": accel_scale, "mag": mag_scale}
     with _blas().limit(limits=1):
         # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds
         # contention, and two processes calibrating at once made a 5 ms fit take 0.7 s.
@@ -206,7 +223,7 @@ def calibrate(
                         "9 sensor parameters)"
                     )
                 )
-            stats, sources = _with_user_noise(stats, noise)
+            stats, sources = _with_user_noise(stats, noise, scales)
             cal = _trust().fit_trusted(
                 spec,
                 stats,
@@ -215,12 +232,13 @@ def calibrate(
                 body_frame=body_frame,
                 options=options,
                 sources=sources,
-                pose_noise={s: fixed[s] for s in stats.sensors},
+                pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
                 robust=bool(robust),
                 alpha=alpha,
                 mag_mirrored=bool(mag_mirrored),
                 on_progress=on_progress,
             )
+    cal = cal.with_raw_scale(scales)
     cal = dataclasses.replace(cal, options={**cal.options, **provenance})
     cal = cal.with_mag_handedness(bool(mag_mirrored))
     if g is not None or h is not None:

@@ -530,6 +530,44 @@ class Calibration(ArrayDataclass):
             self, accel=accel, mag=mag, gravity=g, magnetic=h, covariance=covariance, units={}
         )
 
+    def with_raw_scale(self, scales: Mapping[str, float]) -> Calibration:
+        """The same calibration for raw readings multiplied by ``scales[sensor]``.
+
+        Gains, biases and pose-level noise scale by the factor, noise covariances by its square,
+        and so do their covariance entries and the pose residuals; angles, the verdict and the
+        relative accuracy do not change. :func:`fieldcal.calibrate` fits readings divided by a
+        power of two and calls this to express the result in the user's units.
+        """
+        changes: dict[str, object] = {}
+        factors: dict[str, float] = {}
+        rows = [dict(p) for p in self.poses]
+        for name, c in scales.items():
+            sensor = getattr(self, name)
+            if sensor is None or c == 1.0:
+                continue
+            changes[name] = dataclasses.replace(
+                sensor,
+                gain=sensor.gain * c,
+                bias=sensor.bias * c,
+                noise_cov=sensor.noise_cov * c * c,
+                noise_cov_std=None
+                if sensor.noise_cov_std is None
+                else sensor.noise_cov_std * c * c,
+                pose_noise_std=sensor.pose_noise_std * c,
+                pose_noise_std_se=None
+                if sensor.pose_noise_std_se is None
+                else sensor.pose_noise_std_se * c,
+            )
+            factors[f"{name}.gain"] = factors[f"{name}.bias"] = c
+            for row in rows:
+                if f"{name}_residual" in row:
+                    row[f"{name}_residual"] = [float(x) * c for x in row[f"{name}_residual"]]
+        if not changes:
+            return self
+        if self.covariance is not None:
+            changes["covariance"] = self.covariance.scaled(factors)
+        return dataclasses.replace(self, poses=tuple(rows), **changes)  # type: ignore[arg-type]
+
     def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
         """The twin of this result whose magnetometer has the requested handedness.
 
@@ -541,7 +579,8 @@ class Calibration(ArrayDataclass):
         """
         if self.mag is None or self.accel is None or self.magnetic is None:
             return self
-        relative = np.linalg.det(self.accel.gain) * np.linalg.det(self.mag.gain)
+        # signs only: determinants of gains in large raw units overflow
+        relative = np.linalg.slogdet(self.accel.gain)[0] * np.linalg.slogdet(self.mag.gain)[0]
         if (relative < 0) == bool(mirrored):
             return self
         Ka = self.accel.gain

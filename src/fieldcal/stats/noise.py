@@ -46,7 +46,14 @@ def noise_covariance(value: object, name: str) -> Array:
         raise ValueError(f"noise for {name} must be a number or an array, got {value!r}") from None
     if array.ndim == 0 or array.shape == (3,):
         _finite_positive(array, name, value)
-        return np.eye(3) * float(array) ** 2 if array.ndim == 0 else np.diag(array**2)
+        with np.errstate(over="ignore", invalid="ignore"):  # caught below, with its reason
+            cov = np.eye(3) * np.square(array) if array.ndim == 0 else np.diag(np.square(array))
+        if not np.all(np.isfinite(cov)):
+            raise ValueError(
+                f"noise for {name} is too large to square ({value!r}); give it in the readings' "
+                "own units"
+            )
+        return cov
     if array.shape != (3, 3):
         raise ValueError(
             f"noise for {name} must be a standard deviation (scalar or 3 values) or a 3x3 "

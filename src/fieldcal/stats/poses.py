@@ -300,7 +300,7 @@ def check_spread(stats: PoseStats) -> None:
         means = stats.sensor(name).means
         centred = means - means.mean(axis=0)
         _, sv, Vt = np.linalg.svd(centred, full_matrices=False)
-        if sv[0] <= 1e-12 * max(1.0, float(np.abs(means).max())) or sv[1] < FLAT * sv[0]:
+        if sv[0] <= 1e-12 * float(np.abs(means).max()) or sv[1] < FLAT * sv[0]:
             raise ValueError(
                 f"degenerate poses: the {name} readings barely change from pose to pose or lie "
                 "on a line; turn the device so that each of its axes points up and down in turn"

@@ -85,7 +85,8 @@ def _segment_medians(
     for axis in range(x.shape[1]):  # three axes, each one vectorised sort
         column = x[:, axis]
         low = float(column.min())
-        span = 2.0 * (float(column.max()) - low) + 1.0
+        # relative to the data's own range (readings may be 1e-30 or 1e30)
+        span = 2.0 * (float(column.max()) - low) or 1.0
         offset = pose_of * span
         # the sorted keys keep the poses in order, so position k still belongs to pose_of[k]
         ranked = np.sort(offset + (column - low)) - offset + low

@@ -71,7 +71,7 @@ RULES: dict[str, tuple[str, str]] = {
     ),
     "pose_noise": (
         "warn",
-        "the {sensor}'s pose-to-pose error ({q:.3g} raw) is {ratio:.1f}x its per-sample noise: "
+        "the {sensor}'s pose-to-pose error is {ratio:.1f}x its per-sample noise: "
         "poses not really still, or a magnetically busy site; rest the device on a firm "
         "support away from iron",
     ),
@@ -172,7 +172,7 @@ def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
         cov = stats.sensor(s).cov
         sample = float(np.sqrt(np.trace(cov) / 3.0)) if cov is not None else 0.0
         if sample > 0 and sc.pose_noise_std > POSE_NOISE_RATIO * sample:
-            add("pose_noise", sensor=s, q=sc.pose_noise_std, ratio=sc.pose_noise_std / sample)
+            add("pose_noise", sensor=s, ratio=sc.pose_noise_std / sample)
     for s in sensors:
         trimmed = stats.sensor(s).trimmed
         if trimmed is not None and trimmed.sum() > 0:
