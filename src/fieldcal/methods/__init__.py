@@ -1,10 +1,13 @@
 """Calibration methods: one registry that validates and dispatches, one module per method.
 
-A method is a function ``fit(stats, *, raw_accel, raw_mag, body_frame, <options>) -> Calibration``
-from pose statistics (:mod:`fieldcal.stats.poses`) to a calibration in fieldcal's gauge with unit
-fields. Its options are keyword-only parameters with defaults, so its signature documents
-them and :func:`Method.bind` rejects unknown ones. The shared path (:mod:`fieldcal.trust`) then
-adds the noise model, the certificate, the error bars and the verdict, the same for every method.
+A method is a function
+``fit(stats, *, raw_accel, raw_mag, body_frame, progress, <options>) -> Calibration`` from pose
+statistics (:mod:`fieldcal.stats.poses`) to a calibration in fieldcal's gauge with unit fields;
+``progress`` (``None`` or a callable taking one line of text) hears about long work. Its
+options are keyword-only parameters with defaults, so its signature documents them and
+:meth:`Method.check_options` rejects unknown ones. The shared path (:mod:`fieldcal.trust`)
+then adds the noise model, the certificate, the error bars and the verdict, the same for every
+method.
 
 To add a method: write ``fieldcal/methods/<name>.py`` with ``fit`` and add one :class:`Method`
 to :data:`METHODS`. The CLI's ``--method`` choices, :func:`fieldcal.calibrate`'s validation
@@ -25,7 +28,7 @@ if TYPE_CHECKING:
 __all__ = ["METHODS", "Method", "get"]
 
 #: Parameters of every ``fit`` that are the shared path's, not user options.
-PROTOCOL = ("stats", "raw_accel", "raw_mag", "body_frame")
+PROTOCOL = ("stats", "raw_accel", "raw_mag", "body_frame", "progress")
 
 
 @dataclass(frozen=True)

@@ -657,6 +657,7 @@ def fit(
     raw_accel: Samples | None,
     raw_mag: Samples | None,
     body_frame: str = "accel",
+    progress: Callable[[str], None] | None = None,
     faithful: bool = False,
     inclination_deg: float | None = None,
     fit_on: str = "samples",

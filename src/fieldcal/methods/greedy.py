@@ -468,12 +468,27 @@ def _check(
             raise ValueError(f"{label} must be a whole number of at least 1, got {count!r}")
 
 
+def _reporter(
+    progress: Callable[[str], None], cap: int
+) -> Callable[[int, float, GreedyState, float], None]:
+    """A run_greedy callback that reports about once a second, not every iteration."""
+    last = [-1.0]
+
+    def report(k: int, J: float, state: GreedyState, seconds: float) -> None:
+        if seconds - last[0] >= 1.0:
+            last[0] = seconds
+            progress(f"greedy: iteration {k} of at most {cap}, J = {J:.6g}, {seconds:.0f} s")
+
+    return report
+
+
 def fit(
     stats: PoseStats,
     *,
     raw_accel: object = None,
     raw_mag: object = None,
     body_frame: str = "accel",
+    progress: Callable[[str], None] | None = None,
     gamma: float = 1e-4,
     max_iterations: int = 2000,
     rotation_tol: float = 1e-9,
@@ -489,6 +504,8 @@ def fit(
         The raw samples (unused).
     body_frame : {"accel", "mag"}
         Which sensor's gain is symmetric in the result.
+    progress : callable, optional
+        Told the iteration, J and the time about once a second (the method can take minutes).
     gamma : float
         Stop when ``J[k−1] − J[k] <= γ`` (Table 1: 1e-4).
     max_iterations : int
@@ -510,6 +527,7 @@ def fit(
         int(max_iterations),
         rotation_tol=float(rotation_tol),
         rotation_max_iterations=int(rotation_max_iterations),
+        callback=None if progress is None else _reporter(progress, int(max_iterations)),
     )
     R, Ka, Km, g, h, flipped = to_fieldcal_gauge(result.state, body_frame)
     cov_a, cov_m = stats.sensor("accel").cov, stats.sensor("mag").cov

@@ -75,12 +75,14 @@ class _Runner:
         raw: Mapping[str, Samples | None],
         body_frame: str,
         options: Mapping[str, object],
+        progress: Callable[[str], None] | None = None,
     ) -> None:
         self.method = method
         self.fit = method.load()
         self.raw = raw
         self.body_frame = body_frame
         self.options = options
+        self.progress = progress
         self.mle = METHODS["mle"]
 
     def method_fit(
@@ -95,6 +97,7 @@ class _Runner:
             raw_accel=_subset(self.raw["accel"], keep),
             raw_mag=_subset(self.raw["mag"], keep),
             body_frame=self.body_frame,
+            progress=self.progress,
             **kwargs,
         )
 
@@ -162,7 +165,7 @@ def fit_trusted(
     """Fit with ``method`` and attach the noise model, error bars, certificate, rejected poses,
     verdict and accuracy (see the module docstring). ``stats`` must hold all the caller's poses;
     ``cal.rejected`` and ``cal.poses`` use their numbering."""
-    runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options)
+    runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options, on_progress)
     n_total = stats.n_poses
     keep = np.arange(n_total)
     # one sample per pose: the pose-level variance is the only noise there is, so it is

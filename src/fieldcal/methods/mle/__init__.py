@@ -13,6 +13,8 @@ The certificate, the pose-level noise and the error bars are the shared trust pa
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.special import chdtrc
 
@@ -78,6 +80,7 @@ def fit(
     raw_accel: object = None,
     raw_mag: object = None,
     body_frame: str = "accel",
+    progress: Callable[[str], None] | None = None,
     max_iter: int = 200,
     tol: float = 1e-10,
     initial: Calibration | None = None,
@@ -93,6 +96,8 @@ def fit(
         The raw samples (unused: the pose statistics are sufficient).
     body_frame : {"accel", "mag"}
         Which sensor's gain is symmetric, fixing the body frame (Sec. 4.3).
+    progress : callable, optional
+        Unused: the method takes milliseconds.
     max_iter : int
         Levenberg-Marquardt iterations per start (at least 1).
     tol : float
