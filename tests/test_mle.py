@@ -320,7 +320,8 @@ def test_sap6_dip_matches_the_instrument_with_noise_from_residuals(shared_data, 
     cal = fieldcal.calibrate(list(grav[:, None, :]), list(mag[:, None, :]), gravity=9.80665)
     assert abs(cal.dip_deg - dip_avg) < 1.0
     assert cal.accel.noise_source == "residuals" and cal.mag.noise_source == "residuals"
-    assert cal.diagnostics.statistic == pytest.approx(cal.diagnostics.dof, rel=0.05)  # the fixed point stops within 2 % in q
+    # J equals its degrees of freedom at the fixed point (which stops within 2 % in q)
+    assert cal.diagnostics.statistic == pytest.approx(cal.diagnostics.dof, rel=0.05)
     assert cal.verdict.level != "fail"
     assert 0 < cal.dip_std_deg < 0.5 and cal.misalignment_std_deg > 0
 

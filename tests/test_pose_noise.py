@@ -26,7 +26,8 @@ def test_isotropic_noise_is_recovered_per_sensor():
     assert sa == pytest.approx(2e-3, rel=0.1) and sm == pytest.approx(5e-3, rel=0.1)
     assert np.allclose(cal.accel.noise_cov, sa**2 * np.eye(3))
     # the statistic matches its degrees of freedom at the fixed point
-    assert cal.diagnostics.statistic == pytest.approx(cal.diagnostics.dof, rel=0.05)  # the fixed point stops within 2 % in q
+    # J equals its degrees of freedom at the fixed point (which stops within 2 % in q)
+    assert cal.diagnostics.statistic == pytest.approx(cal.diagnostics.dof, rel=0.05)
     # χ² standard error of σ²: σ² sqrt(2/ν_s), ν_a + ν_m = 3N − 22
     nu_a = 2 * cal.accel.noise_cov[0, 0] ** 2 / cal.accel.noise_cov_std[0, 0] ** 2
     nu_m = 2 * cal.mag.noise_cov[0, 0] ** 2 / cal.mag.noise_cov_std[0, 0] ** 2
