@@ -286,7 +286,8 @@ def test_a_bumped_pose_is_named_and_dropped():
     # a bump moves the accelerometer's reading; the pose's rotation then skews the
     # magnetometer's too: "accel" or "both", never "mag"
     assert [r.index for r in cal.rejected] == [6] and cal.rejected[0].sensor in ("accel", "both")
-    assert "moved or bumped" in cal.rejected[0].reason and cal.verdict.level == "warn"
+    # the offset lies partly across gravity: the reason may say it cannot tell iron from motion
+    assert "moved" in cal.rejected[0].reason and cal.verdict.level == "warn"
     assert cal.converged and cal.n_poses == 14
     assert 6 not in [p["index"] for p in cal.poses]
     # without the robust fit the certificate condemns the fit and points at the same pose

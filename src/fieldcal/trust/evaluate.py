@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from ..calibration import Calibration
 from ..methods.mle import state_from_calibration
 from ..methods.mle.lm import normal_equations
-from ..methods.mle.model import Problem, build_problem, residuals
+from ..methods.mle.model import Problem, build_problem, field, residuals
 from ..methods.mle.uncertainty import Uncertainty, uncertainty
 from ..stats.poses import PoseStats
 
@@ -38,12 +38,15 @@ class Evaluation:
         The same residuals in raw units, per sensor.
     uncertainty : Uncertainty
         Cramér-Rao covariance of the named parameters, condition number, leverage blocks.
+    directions : dict of (N, 3) arrays
+        Unit direction of each sensor's field in raw coordinates, ``K_s R_i f_s``, per pose.
     """
 
     problem: Problem
     whitened: Array
     raw: dict[str, Array]
     uncertainty: Uncertainty
+    directions: dict[str, Array]
 
     @property
     def dof(self) -> int:
@@ -77,10 +80,12 @@ def evaluate(cal: Calibration, stats: PoseStats, body_frame: str) -> Evaluation:
     state = state_from_calibration(problem, cal)
     e = residuals(problem, state)
     ne = normal_equations(problem, state, e)
-    raw = {}
+    raw, directions = {}, {}
     for s in problem.sensors:
+        v = (state.rotations @ field(problem, s, state.dip)) @ state.gains[s].T
+        directions[s] = v / np.linalg.norm(v, axis=1, keepdims=True)
         k = problem.sensors.index(s)
         # back to raw units: L_i e_i
         chol = np.linalg.inv(problem.linv[s])
         raw[s] = np.einsum("nij,nj->ni", chol, e[:, 3 * k : 3 * k + 3])
-    return Evaluation(problem, e, raw, uncertainty(problem, ne))
+    return Evaluation(problem, e, raw, uncertainty(problem, ne), directions)

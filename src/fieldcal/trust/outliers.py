@@ -15,8 +15,9 @@ degrees of freedom by ``r`` (linear model), so the variance estimated without th
 ``(J_s − t_si)/(ν_s − r)`` of the current one, and ``t`` is divided by that (for the estimated
 share ``w`` of the pose mean's variance only). One disturbed pose can then not hide by inflating
 ``q²`` for everyone, nor by dragging the fit so that every pose's residual grows. ``t/r``
-follows ``F(r, ν_eff)`` with ``ν_eff = (ν_s − r) / w²`` (Satterthwaite; ``ν_eff → ∞`` and the
-χ²(r) law when nothing was estimated).
+follows ``F(r, ν_eff)`` with ``ν_eff = c (ν_s − r) / w²`` (Satterthwaite; ``c`` =
+:func:`~fieldcal.trust.pose_noise.dof_factor`, the estimate's measured share of its nominal
+degrees of freedom; ``ν_eff → ∞`` and the χ²(r) law when nothing was estimated).
 
 Decision. A pose is flagged when a sensor's p-value is below ``α / (N · #sensors)``
 (Bonferroni: family-wise false-alarm rate ``α`` per calibration, 1 % by default). A
@@ -34,7 +35,7 @@ from scipy.special import fdtrc
 
 from ..stats.poses import PoseStats
 from .evaluate import Evaluation
-from .pose_noise import PoseNoise
+from .pose_noise import PoseNoise, dof_factor
 
 __all__ = ["REASONS", "PoseTests", "pose_tests"]
 
@@ -50,7 +51,15 @@ REASONS = {
     "still against a fixed support",
     "turned": "moved during the pose: the magnetometer's readings swing within it while the "
     "accelerometer's stay (a turn about the vertical); hold the device still",
+    "angle": "the angle between gravity and the magnetic field in this pose disagrees with the "
+    "other poses: a magnetic disturbance or the device moved (one pose cannot tell which); take "
+    "this pose again, still and away from iron",
 }
+
+#: A failing residual with less than this share of its square along the sensor's own field is
+#: "across": the pose's rotation spreads such an error over both sensors, so the sensor to
+#: blame cannot be told.
+RADIAL = 0.5
 
 #: A pose whose own scatter exceeds this multiple of the typical pose's moved within it.
 SWING = 10.0
@@ -63,6 +72,7 @@ class PoseTests:
     sensors: tuple[str, ...]
     statistic: Array
     p_value: Array
+    radial: Array  # (N, #sensors): share of each residual's square along the sensor's field
 
     def flagged(self, alpha: float) -> NDArray[np.bool_]:
         """Poses any sensor of which fails at family-wise rate ``alpha`` (Bonferroni)."""
@@ -76,11 +86,13 @@ class PoseTests:
         n, k = self.p_value.shape
         failing = [s for j, s in enumerate(self.sensors) if self.p_value[i, j] < alpha / (n * k)]
         if len(failing) == 2:
-            return "both", "both"
+            return "both", "angle" if self.radial[i].max() < RADIAL else "both"
         sensor = failing[0] if failing else self.sensors[int(np.argmin(self.p_value[i]))]
         scatter = stats.sensor(sensor).scatter
         if sensor == "mag" and scatter is not None and scatter[i] > SWING * np.median(scatter):
             return "mag", "turned"
+        if len(self.sensors) == 2 and self.radial[i, self.sensors.index(sensor)] < RADIAL:
+            return sensor, "angle"
         return sensor, sensor
 
 
@@ -106,7 +118,10 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
     lev = ev.uncertainty.leverage
     stat = np.zeros((n, len(sensors)))
     pval = np.ones((n, len(sensors)))
+    radial = np.ones((n, len(sensors)))
     for j, s in enumerate(sensors):
+        along = np.einsum("ni,ni->n", ev.raw[s], ev.directions[s]) ** 2
+        radial[:, j] = along / np.maximum(np.einsum("ni,ni->n", ev.raw[s], ev.raw[s]), 1e-300)
         block = ev.block(s)
         e = ev.whitened[:, block]
         t, r = _studentised(e, np.eye(3) - lev[:, block, block])
@@ -118,12 +133,13 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
             ratio = (J - t) / np.maximum(nu - r, 1.0) / max(J / nu, 1e-300)
             scale = np.maximum(1.0 - w + w * np.maximum(ratio, 0.0), max(1.0 - w, 1e-6))
             t = t / scale
-            nu_eff = np.minimum(np.maximum(nu - r, 1.0) / (w * w), 1e7)
+            c = dof_factor(stats.sensor(s))
+            nu_eff = np.minimum(c * np.maximum(nu - r, 1.0) / (w * w), 1e7)
         else:
             nu_eff = np.full(n, 1e7)
         stat[:, j] = t
         pval[:, j] = fdtrc(r, nu_eff, np.maximum(t, 0.0) / r)
-    return PoseTests(sensors, stat, pval)
+    return PoseTests(sensors, stat, pval, radial)
 
 
 def _estimated_share(stats: PoseStats, noise: PoseNoise, sensor: str) -> float:
