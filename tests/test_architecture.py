@@ -26,6 +26,7 @@ RANK = {
     "errors": 0,
     "_version": 0,
     "_frozen": 0,
+    "_files": 0.5,  # atomic writes and the output checks; raises errors.InputError
     "geometry": 1,
     "metrics": 1,
     "serialize": 1.5,

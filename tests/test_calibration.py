@@ -234,3 +234,116 @@ def test_mag_handedness_twin_in_the_magnetometer_frame_keeps_its_gain_symmetric(
     assert np.linalg.det(twin.accel.gain) < 0 and twin.dip_deg == pytest.approx(-cal.dip_deg)
     for before, after in zip(cal.predicted_means(), twin.predicted_means(), strict=True):
         np.testing.assert_allclose(after, before, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- malformed files
+def _doc():
+    return json.loads(_full_calibration().to_json())
+
+
+def _refused(text, match):
+    with pytest.raises(ValueError, match=match) as info:
+        Calibration.from_json(text)
+    message = str(info.value)
+    assert "\n" not in message and len(message) < 300, message
+    assert type(info.value) is ValueError  # not a TypeError, KeyError, RecursionError...
+    return message
+
+
+def _mutated(change):
+    doc = _doc()
+    change(doc)
+    return json.dumps(doc, allow_nan=True)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda d: d.update(converged="false"), "converged must be true or false, not 'false'"),
+        (lambda d: d.update(converged=1), "converged must be true or false"),
+        (lambda d: d["accel"]["gain"][1].__setitem__(2, "inf"), "accel.gain has NaN or inf"),
+        (lambda d: d["mag"]["bias"].__setitem__(0, float("nan")), "mag.bias has NaN or inf"),
+        (lambda d: d["accel"].update(gain=[[1, 0, 0], [0, 1, 0]]), "must have shape 3x3"),
+        (lambda d: d["accel"].update(gain=[[1, 2, 3]] * 3), "accel.gain is singular"),
+        (lambda d: d["mag"].update(gain=np.zeros((3, 3)).tolist()), "mag.gain is singular"),
+        (lambda d: d["mag"].update(bias=["1", "2", "3"]), "must be a number, not the text '1'"),
+        (lambda d: d["accel"].pop("gain"), "document.accel has no 'gain'"),
+        (lambda d: d.update(accel=[d["accel"]]), "document.accel must be an object, not list"),
+        (lambda d: d.update(rotations="R"), "rotations must be a list of numbers, not str"),
+        (lambda d: d["rotations"][0].append([1, 2, 3]), "rotations has rows of different"),
+        (lambda d: d["accel"].update(noise_cov=(-np.eye(3)).tolist()), "negative variance"),
+        (lambda d: d["accel"].update(pose_noise_std="inf"), "pose_noise_std must be a finite"),
+        (lambda d: d["covariance"]["matrix"][0].__setitem__(0, "-inf"), "covariance has NaN"),
+        (lambda d: d.update(options={"a": [[[[[[[[[[1]]]]]]]]]]}), None),
+        (lambda d: d.update(schema_version="2"), "schema_version '2' is not a version"),
+        (lambda d: d.update(schema_version=True), "schema_version"),
+        (lambda d: d.pop("schema"), "not a fieldcal calibration"),
+        (lambda d: d.update(accel=None, mag=None), "neither an accelerometer nor a magnet"),
+        (lambda d: d.update(verdict={"level": "great"}), "verdict level must be pass, warn"),
+    ],
+)
+def test_malformed_documents_are_one_line_value_errors(change, match):
+    text = _mutated(change)
+    if match is None:  # a legal document
+        assert Calibration.from_json(text).options["a"]
+        return
+    _refused(text, match)
+
+
+def test_documents_that_are_not_json_objects():
+    _refused("[" * 100_000 + "]" * 100_000, "nested too deeply")
+    doc = _doc()
+    doc["options"] = {"x": "__DEEP__"}
+    _refused(json.dumps(doc).replace('"__DEEP__"', "[" * 500 + "]" * 500), "nested too deeply")
+    _refused(json.dumps(doc).replace('"__DEEP__"', "1" * 5000), "not a fieldcal calibration JSON")
+    text = json.dumps(_doc()).replace('"gain": [[', '"gain": [[' + "1" * 400 + ".0, ", 1)
+    _refused(text, "has rows of different lengths")
+    big = json.dumps(_doc()).replace('"bias": [', '"bias": [' + "1" * 400 + ", ", 1)
+    _refused(big, "too large a number|rows of different lengths|must have shape")
+    for text in ("", "[]", "null", '"cal"', "{"):
+        _refused(text, "not a fieldcal calibration")
+    with pytest.raises(ValueError, match="takes the text of a calibration file, not dict"):
+        Calibration.from_json(_doc())
+    _refused(b"\xff\xfe{}", "not a fieldcal calibration JSON")
+
+
+def test_nothing_downstream_sees_a_non_finite_or_singular_matrix():
+    """What from_json accepts, corrections and every export can use."""
+    from fieldcal.output import exports
+
+    rng = np.random.default_rng(11)
+    base = _doc()
+    paths = [("accel", "gain"), ("mag", "gain"), ("accel", "bias"), ("mag", "noise_cov")]
+    for _ in range(40):
+        doc = json.loads(json.dumps(base))
+        sensor, part = paths[rng.integers(0, len(paths))]
+        value = np.array(doc[sensor][part], dtype=float)
+        value.flat[rng.integers(0, value.size)] = rng.choice([np.nan, np.inf, 0.0, 1e300])
+        doc[sensor][part] = value.tolist()
+        try:
+            cal = Calibration.from_json(json.dumps(doc, allow_nan=True))
+        except ValueError as exc:
+            assert "\n" not in str(exc)
+            continue
+        for s in ("accel", "mag"):
+            sensor = cal.sensor(s)
+            assert np.all(np.isfinite(sensor.gain)) and np.all(np.isfinite(sensor.bias))
+            assert np.all(np.isfinite(cal.correct_accel([0.1, 0.2, 0.9])))
+        for fmt in exports.FORMATS:
+            try:
+                assert exports.export(cal, fmt)
+            except ValueError as exc:  # a format may refuse what it cannot hold, in one line
+                assert "\n" not in str(exc)
+
+
+@pytest.mark.parametrize("gravity", ["9.8", True, float("nan"), -1.0, 1e308, [9.8]])
+def test_field_magnitudes_are_checked(gravity):
+    with pytest.raises(ValueError, match="gravity must be a positive number from 1e-150"):
+        _full_calibration().with_field_magnitudes(gravity=gravity)
+
+
+def test_correct_refuses_what_is_not_real_readings():
+    cal = _full_calibration()
+    for raw in ([[1 + 1j, 0, 0]], [["1", "2", "3"]], [[True, False, True]]):
+        with pytest.raises(ValueError, match="raw readings must be real numbers"):
+            cal.correct_accel(raw)

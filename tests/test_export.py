@@ -213,3 +213,36 @@ def test_unknown_format(cal):
     with pytest.raises(ValueError, match="c-header, matlab, magneto, json") as info:
         export(cal, "excel")
     assert "\n" not in str(info.value) and "'excel'" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("gain", "bias", "match"),
+    [
+        (np.full((3, 3), np.nan), np.zeros(3), "not finite"),
+        (np.eye(3), np.array([np.inf, 0.0, 0.0]), "not finite"),
+        (np.zeros((3, 3)), np.zeros(3), "singular"),
+        (np.eye(3) * 1e-320, np.zeros(3), "overflows a double"),
+    ],
+)
+def test_every_export_refuses_what_no_target_can_hold(gain, bias, match):
+    bad = _cal(np.eye(3), np.zeros(3), gain, bias)
+    for name in FORMATS:
+        with pytest.raises(ValueError, match=match) as info:
+            export(bad, name)
+        assert "\n" not in str(info.value) and "magnetometer" in str(info.value)
+
+
+def test_extreme_finite_values_read_back_exactly():
+    """MATLAB, Magneto and JSON numbers are exact doubles at both ends of their range; the C
+    header refuses what a float cannot hold and says which formats can."""
+    big = _cal(np.eye(3) * 1e-300, np.full(3, -1.5e300), np.eye(3) * 3e300, np.full(3, 5e-324))
+    matlab = " ".join(re.findall(r"= \[(.*?)\];", export(big, "matlab")))
+    magneto = [line for line in export(big, "magneto").splitlines() if line[:1] == " "]
+    for name, text in (("matlab", matlab), ("magneto", " ".join(magneto))):
+        values = {float(v) for v in text.replace(";", " ").split()}
+        assert {1 / 1e-300, -1.5e300, 1 / 3e300, 5e-324} <= values, name
+    back = fieldcal.Calibration.from_json(export(big, "json"))
+    assert np.array_equal(back.mag.gain, big.mag.gain) and back.mag.bias[0] == 5e-324
+    with pytest.raises(ValueError, match=r"c-header.*matlab, magneto, json") as info:
+        export(big, "c-header")
+    assert "np.float64" not in str(info.value)  # the number as the user knows it

@@ -6,6 +6,7 @@ import dataclasses
 import html
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +17,12 @@ matplotlib.use("Agg")
 from fieldcal.calibration import Verdict  # noqa: E402
 from fieldcal.errors import InputError  # noqa: E402
 from fieldcal.logs import load_log, poses_from_log  # noqa: E402
-from fieldcal.output.report import _banner_html, _inverse_gain_std, write_report  # noqa: E402
+from fieldcal.output.report import (  # noqa: E402
+    FIGURES,
+    _banner_html,
+    _inverse_gain_std,
+    write_report,
+)
 from fieldcal.pipeline import calibrate_log  # noqa: E402
 from fieldcal.simulation.continuous import simulate_continuous  # noqa: E402
 
@@ -134,3 +140,14 @@ def test_inverse_gain_errors_follow_the_delta_method(made):
         J[:, p] = (plus - minus).ravel() / (2 * h)
     expected = np.sqrt(np.diag(J @ C @ J.T)).reshape(3, 3)
     np.testing.assert_allclose(_inverse_gain_std(sensor), expected, rtol=1e-5)
+
+
+def test_report_is_written_atomically_and_never_over_its_log(made, tmp_path):
+    folder = made["folder"]
+    assert {p.stem for p in (folder / "png").iterdir()} <= set(FIGURES)
+    assert [p for p in folder.rglob("*.part")] == []
+    log_path = Path(made["log"].path)
+    before = log_path.read_bytes()
+    with pytest.raises(InputError, match="is the input log"):
+        write_report(made["cal"], made["log"], log_path)
+    assert log_path.read_bytes() == before

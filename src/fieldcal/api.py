@@ -18,9 +18,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .calibration import Calibration
+from .methods import Method
 from .methods import get as get_method
 from .stats.noise import noise_covariance, per_sensor, pose_noise_value
-from .stats.poses import PoseStats, Samples, summarize
+from .stats.poses import PoseStats, Samples, brief, summarize
 from .stats.scaling import normalise
 
 if TYPE_CHECKING:
@@ -51,39 +52,44 @@ def _trust() -> ModuleType:
 
 
 def _magnitude(value: object, name: str) -> float | None:
+    """A reference field's magnitude: a real number from 1e-150 to 1e150 (the gains are raw
+    units per unit of it, and their covariance must stay in floating-point range)."""
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    if not (np.isfinite(float(value)) and float(value) > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a positive number, got {brief(value)}")
+    if not 1e-150 <= float(value) <= 1e150:
+        raise ValueError(
+            f"{name} must be a positive number from 1e-150 to 1e150, got {brief(value)}"
+        )
     return float(value)
 
 
 def _probability(value: object, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number in (0, 1), got {value!r}")
+        raise ValueError(f"{name} must be a number in (0, 1), got {brief(value)}")
     if not 0 < float(value) < 1:
-        raise ValueError(f"{name} must be in (0, 1), got {value!r}")
+        raise ValueError(f"{name} must be in (0, 1), got {brief(value)}")
     return float(value)
 
 
+def _user_noise(noise: object) -> dict[str, np.ndarray]:
+    """The user's per-sample noise covariance per sensor (raw units), checked."""
+    given = per_sensor(noise, "noise") if noise is not None else {}
+    return {name: noise_covariance(v, name) for name, v in given.items() if v is not None}
+
+
 def _with_user_noise(
-    stats: PoseStats, noise: object, scales: Mapping[str, float]
+    stats: PoseStats, given: Mapping[str, np.ndarray], scales: Mapping[str, float]
 ) -> tuple[PoseStats, dict[str, str]]:
     """Replace Eq. 7's covariance by the user's where given (in the readings' scaled units);
     report each sensor's source."""
-    given = per_sensor(noise, "noise") if noise is not None else {}
     sources: dict[str, str] = {}
     for name in stats.sensors:
         value = given.get(name)
         if value is not None:
             stats = stats.replace(
-                **{
-                    name: dataclasses.replace(
-                        stats.sensor(name), cov=noise_covariance(value, name) / scales[name] ** 2
-                    )
-                }
+                **{name: dataclasses.replace(stats.sensor(name), cov=value / scales[name] ** 2)}
             )
             sources[name] = "user"
         else:
@@ -168,19 +174,24 @@ def calibrate(
     """
     spec = get_method(method)
     if body_frame not in ("accel", "mag"):
-        raise ValueError(f"body_frame must be 'accel' or 'mag', got {body_frame!r}")
+        raise ValueError(f"body_frame must be 'accel' or 'mag', got {brief(body_frame)}")
     for flag, value in (("mag_mirrored", mag_mirrored), ("robust", robust)):
         if not isinstance(value, (bool, np.bool_)):
-            raise ValueError(f"{flag} must be True or False, got {value!r}")
+            raise ValueError(f"{flag} must be True or False, got {brief(value)}")
+    if on_progress is not None and not callable(on_progress):
+        raise ValueError(
+            f"on_progress must be a function taking one line of text, got {brief(on_progress)}"
+        )
     if trim is None:
         trim = bool(robust)
     elif not isinstance(trim, (bool, np.bool_)):
-        raise ValueError(f"trim must be True or False, got {trim!r}")
+        raise ValueError(f"trim must be True or False, got {brief(trim)}")
     alpha = _probability(false_alarm, "false_alarm")
     g = _magnitude(gravity, "gravity")
     h = _magnitude(field_strength, "field_strength")
     spec.check_options(options)
     fixed = {s: pose_noise_value(v, s) for s, v in per_sensor(pose_noise, "pose_noise").items()}
+    user_noise = _user_noise(noise)
     provenance = {
         "body_frame": body_frame,
         "mag_mirrored": bool(mag_mirrored),
@@ -194,53 +205,93 @@ def calibrate(
     accel, accel_scale = normalise(accel, "accel")
     mag, mag_scale = normalise(mag, "mag")
     scales = {"accel": accel_scale, "mag": mag_scale}
-    with _blas().limit(limits=1):
+    try:
         # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds
         # contention, and two processes calibrating at once made a 5 ms fit take 0.7 s.
-        if _continuous(accel, mag):
-            if not spec.continuous:
-                raise ValueError(
-                    f"method {method!r} needs per-pose input: pass a list with one (n_i, 3) "
-                    "array per static pose (or use method='ellipsoid' for continuous samples)"
-                )
-            if noise is not None:
-                raise ValueError(
-                    "noise= needs per-pose input; with continuous samples the ellipsoid method "
-                    "estimates the noise from its fit residuals (pass per-pose arrays instead)"
-                )
-            cal = spec.load()(None, raw_accel=accel, raw_mag=mag, body_frame=body_frame, **options)
-        else:
-            stats = summarize(accel, mag, trim=bool(trim))
-            need = spec.min_poses_for(len(stats.sensors))
-            if stats.n_poses < need:
-                raise ValueError(
-                    f"{stats.n_poses} poses given; the {method} method needs at least {need}"
-                    + (
-                        " (6N readings must outnumber the 3N rotation angles plus 22 sensor "
-                        "parameters)"
-                        if len(stats.sensors) == 2
-                        else " for one sensor (3N readings must outnumber 2N tilt angles plus "
-                        "9 sensor parameters)"
-                    )
-                )
-            stats, sources = _with_user_noise(stats, noise, scales)
-            cal = _trust().fit_trusted(
-                spec,
-                stats,
-                raw_accel=accel,
-                raw_mag=mag,
-                body_frame=body_frame,
-                options=options,
-                sources=sources,
-                pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
-                robust=bool(robust),
-                alpha=alpha,
-                mag_mirrored=bool(mag_mirrored),
-                on_progress=on_progress,
+        # Floating-point trouble is not printed: the result is checked below and refused in
+        # one line when anything a correction uses is not finite.
+        with _blas().limit(limits=1), np.errstate(all="ignore"):
+            cal = _fit(
+                spec, accel, mag, scales, options, user_noise, fixed, body_frame,
+                trim=bool(trim), robust=bool(robust), alpha=alpha,
+                mag_mirrored=bool(mag_mirrored), on_progress=on_progress,
+            )  # fmt: skip
+            cal = cal.with_raw_scale(scales)
+            cal = dataclasses.replace(cal, options={**cal.options, **provenance})
+            cal = cal.with_mag_handedness(bool(mag_mirrored))
+            if g is not None or h is not None:
+                cal = cal.with_field_magnitudes(g, h)
+    except np.linalg.LinAlgError as exc:
+        raise ValueError(
+            f"the poses cannot determine the calibration (numpy: {' '.join(str(exc).split())}); "
+            "record poses with each axis pointing up and down, and check the readings change "
+            "from pose to pose"
+        ) from None
+    try:
+        cal.check_values()
+    except ValueError as exc:
+        raise ValueError(
+            f"the {method} fit gave no usable calibration ({str(exc).removeprefix('invalid ')}"
+            "); check the readings (units, columns) and record poses with each axis up and down"
+        ) from None
+    return cal
+
+
+def _fit(
+    spec: Method,
+    accel: Samples | None,
+    mag: Samples | None,
+    scales: Mapping[str, float],
+    options: Mapping[str, object],
+    user_noise: Mapping[str, np.ndarray],
+    fixed: Mapping[str, float | None],
+    body_frame: str,
+    *,
+    trim: bool,
+    robust: bool,
+    alpha: float,
+    mag_mirrored: bool,
+    on_progress: Callable[[str], None] | None,
+) -> Calibration:
+    """The method through the shared trust path, on readings divided by ``scales``."""
+    if _continuous(accel, mag):
+        if not spec.continuous:
+            raise ValueError(
+                f"method {spec.name!r} needs per-pose input: pass a list with one (n_i, 3) "
+                "array per static pose (or use method='ellipsoid' for continuous samples)"
             )
-    cal = cal.with_raw_scale(scales)
-    cal = dataclasses.replace(cal, options={**cal.options, **provenance})
-    cal = cal.with_mag_handedness(bool(mag_mirrored))
-    if g is not None or h is not None:
-        cal = cal.with_field_magnitudes(g, h)
+        if user_noise:
+            raise ValueError(
+                "noise= needs per-pose input; with continuous samples the ellipsoid method "
+                "estimates the noise from its fit residuals (pass per-pose arrays instead)"
+            )
+        cal = spec.load()(None, raw_accel=accel, raw_mag=mag, body_frame=body_frame, **options)
+    else:
+        stats = summarize(accel, mag, trim=trim)
+        need = spec.min_poses_for(len(stats.sensors))
+        if stats.n_poses < need:
+            raise ValueError(
+                f"{stats.n_poses} poses given; the {spec.name} method needs at least {need}"
+                + (
+                    " (6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
+                    if len(stats.sensors) == 2
+                    else " for one sensor (3N readings must outnumber 2N tilt angles plus "
+                    "9 sensor parameters)"
+                )
+            )
+        stats, sources = _with_user_noise(stats, user_noise, scales)
+        cal = _trust().fit_trusted(
+            spec,
+            stats,
+            raw_accel=accel,
+            raw_mag=mag,
+            body_frame=body_frame,
+            options=options,
+            sources=sources,
+            pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
+            robust=robust,
+            alpha=alpha,
+            mag_mirrored=mag_mirrored,
+            on_progress=on_progress,
+        )
     return cal

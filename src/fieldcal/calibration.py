@@ -226,7 +226,12 @@ class SensorCalibration(ArrayDataclass):
 
     def correct(self, raw: ArrayLike) -> Array:
         """Inverse model: raw readings (..., 3) -> body-frame vectors ``gain⁻¹ (raw − bias)``."""
-        x = np.asarray(raw, dtype=float)
+        given = np.asarray(raw)
+        if given.dtype.kind not in "fiu":
+            raise ValueError(
+                f"raw readings must be real numbers, got an array of {given.dtype.name}"
+            )
+        x = given.astype(float)
         if x.shape[-1:] != (3,):
             raise ValueError(f"raw readings must have shape (..., 3), got {x.shape}")
         body = np.linalg.solve(self.gain, (x - self.bias).reshape(-1, 3).T).T.reshape(x.shape)
@@ -516,9 +521,11 @@ class Calibration(ArrayDataclass):
         ) -> tuple[SensorCalibration | None, Array | None]:
             if value is None or sensor is None or ref is None:
                 return sensor, ref
-            if not (np.isfinite(value) and value > 0):
+            if not _magnitude_ok(value):
                 label = "gravity" if name == "accel" else "field_strength"
-                raise ValueError(f"{label} must be a positive number, got {value!r}")
+                raise ValueError(
+                    f"{label} must be a positive number from 1e-150 to 1e150, got {value!r}"[:200]
+                )
             c = float(np.linalg.norm(ref)) / float(value)
             factors[f"{name}.gain"] = c
             return dataclasses.replace(sensor, gain=sensor.gain * c), ref / c
@@ -639,10 +646,18 @@ class Calibration(ArrayDataclass):
     @classmethod
     def from_json(cls, text: str) -> Calibration:
         """Read a calibration written by :meth:`to_json` (any schema version up to ours)."""
+        if not isinstance(text, (str, bytes, bytearray)):
+            raise ValueError(
+                f"from_json takes the text of a calibration file, not {type(text).__name__}; "
+                "read the file first (Path(name).read_text())"
+            )
         try:
             data = json.loads(text)
-        except (json.JSONDecodeError, RecursionError) as exc:
-            raise ValueError(f"not a fieldcal calibration JSON: {exc}") from None
+        except RecursionError:
+            raise ValueError("not a fieldcal calibration JSON: nested too deeply") from None
+        except ValueError as exc:  # JSONDecodeError, an integer of thousands of digits
+            reason = " ".join(str(exc).split())[:120]
+            raise ValueError(f"not a fieldcal calibration JSON: {reason}") from None
         if not isinstance(data, dict):
             raise ValueError("not a fieldcal calibration JSON: the document is not an object")
         return cls.from_dict(data)
@@ -661,6 +676,14 @@ class Calibration(ArrayDataclass):
             for part in ("gain", "bias", "noise_cov"):
                 if not np.all(np.isfinite(getattr(sensor, part))):
                     raise ValueError(f"invalid calibration: {name}.{part} has NaN or inf entries")
+            if np.any(np.diag(sensor.noise_cov) < 0):
+                raise ValueError(
+                    f"invalid calibration: {name}.noise_cov has a negative variance on its diagonal"
+                )
+            if not (np.isfinite(sensor.pose_noise_std) and sensor.pose_noise_std >= 0):
+                raise ValueError(
+                    f"invalid calibration: {name}.pose_noise_std must be a finite number >= 0"
+                )
             K = sensor.gain
             s = np.linalg.svd(K, compute_uv=False)
             if not s[-1] > 1e-12 * s[0]:
@@ -672,6 +695,18 @@ class Calibration(ArrayDataclass):
                 raise ValueError(f"invalid calibration: the {name} reference field is not finite")
         if not np.all(np.isfinite(self.rotations)):
             raise ValueError("invalid calibration: rotations has NaN or inf entries")
+        if self.covariance is not None and not np.all(np.isfinite(self.covariance.matrix)):
+            raise ValueError("invalid calibration: covariance has NaN or inf entries")
+
+
+def _magnitude_ok(value: object) -> bool:
+    """A field magnitude: a real number (not a bool) from 1e-150 to 1e150, so gains and
+    their covariance stay in floating-point range."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        return False
+    if isinstance(value, np.complexfloating):
+        return False
+    return bool(1e-150 <= float(value) <= 1e150)
 
 
 #: The conventions, stated in every document for readers without the docs.

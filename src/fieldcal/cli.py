@@ -2,9 +2,15 @@
 
 Commands only: parse the options, call the library, print, choose the exit code.
 
-Exit codes: 0 success; 2 a mistake in the user's input (file, columns, options, too few or
-degenerate poses), reported as one ``Error: ...`` line on stderr, never a traceback; 3 the
-calibration's verdict is ``fail`` (every requested file is still written).
+Exit codes: 0 success; 1 a bug in fieldcal (one line asking for a report; ``FIELDCAL_DEBUG=1``
+shows the traceback); 2 a mistake in the user's input (file, columns, options, too few or
+degenerate poses, an output that exists or is an input), reported as one ``Error: ...`` line on
+stderr, never a traceback; 3 the calibration's verdict is ``fail`` (every requested file is
+still written); 130 interrupted (Ctrl-C): one line saying which files were completed.
+
+Files: every output is checked before any work (never an input of the command, compared by
+file identity; an existing file only with ``--force``) and written atomically
+(:mod:`fieldcal._files`), so an error or an interrupt leaves the old file or the new one.
 
 Startup: ``fieldcal --version`` and ``--help`` load numpy, click and fieldcal's light modules
 only. Rich, the pipeline and the output modules load inside the commands, through
@@ -13,14 +19,20 @@ only. Rich, the pipeline and the output modules load inside the commands, throug
 
 from __future__ import annotations
 
+import csv
 import importlib
 import importlib.util
 import inspect
 import json
+import math
+import os
+import sys
 import tempfile
 import time
 import warnings
-from collections.abc import Callable
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
@@ -28,6 +40,7 @@ from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
 import click
 import numpy as np
 
+from . import _files
 from ._version import __version__
 from .api import calibrate as _calibrate
 from .calibration import Calibration
@@ -35,7 +48,7 @@ from .errors import InputError
 from .methods import METHODS
 from .metrics import reconstruction_error
 from .output import exports
-from .simulation.session import Preset, Session
+from .simulation.session import PRESETS, Preset, Session
 from .simulation.session import simulate as simulate_session
 
 if TYPE_CHECKING:
@@ -43,19 +56,39 @@ if TYPE_CHECKING:
 
     from .logs import Log, PoseSet
 
-__all__ = ["EXIT_FAIL", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
+__all__ = ["EXIT_BUG", "EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
 
-#: Exit codes: success; a mistake in the input or options; a calibration whose verdict is fail.
-EXIT_OK, EXIT_USAGE, EXIT_FAIL = 0, 2, 3
+#: Exit codes: success; a bug in fieldcal; a mistake in the input or options; a calibration whose
+#: verdict is fail; interrupted (128 + SIGINT, as shells report Ctrl-C).
+EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FAIL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
-_USER_ERRORS = (InputError, ValueError, OSError, np.linalg.LinAlgError)
+#: Exceptions a user can cause with a file or an option: one ``Error:`` line, exit code 2.
+_USER_ERRORS = (
+    InputError,
+    ValueError,  # UnicodeError, json's and pyarrow's ArrowInvalid among them
+    OSError,
+    np.linalg.LinAlgError,
+    OverflowError,  # extreme values
+    FloatingPointError,
+    MemoryError,
+    EOFError,  # a truncated .npy
+    zipfile.BadZipFile,  # a damaged .npz
+    csv.Error,
+)
+#: The environment variable that shows the traceback of an unexpected error (and warnings).
+_DEBUG = "FIELDCAL_DEBUG"
 #: The calibration file ``calibrate`` writes when neither ``-o`` nor ``--json`` is given.
 _DEFAULT_OUTPUT = "cal.json"
 #: The library's default method: the command line has no default of its own.
 _DEFAULT_METHOD = inspect.signature(_calibrate).parameters["method"].default
+#: Largest (and 1 / smallest) magnitude taken for a field, a noise or a threshold: its square
+#: stays a finite, normal double, over the raw scales fieldcal supports (1e-30 to 1e149).
+_BIG = 1e150
 
 #: A command function, as click's decorators take and return it.
 _Command = TypeVar("_Command", bound=Callable[..., object])
+#: What the commands pass to the library for progress: one line of text, or nothing.
+_Progress = Callable[[str], None] | None
 
 
 class _LogOptions(TypedDict, total=False):
@@ -110,18 +143,123 @@ def _console(*, stderr: bool = False) -> Console:
     return console(stderr=stderr, markup=False, emoji=False, highlight=False, soft_wrap=True)
 
 
+def _debug() -> bool:
+    return os.environ.get(_DEBUG, "").strip() not in ("", "0")
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+class _UsageError(click.ClickException):
+    """A usage error shown as one ``Error: ...`` line (click's adds the usage block)."""
+
+    exit_code = EXIT_USAGE
+
+    @classmethod
+    def of(cls, exc: click.UsageError) -> _UsageError:
+        where = exc.ctx.command_path if exc.ctx is not None else "fieldcal"
+        return cls(f"{_one_line(exc.format_message()).rstrip('.')}; see '{where} --help'")
+
+
+def _user_message(exc: BaseException) -> str:
+    if isinstance(exc, MemoryError):
+        return "not enough memory for this input; give a smaller log (apply streams CSV files)"
+    message = _one_line(str(exc)) or type(exc).__name__
+    if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in message:
+        message = f"{exc.filename}: {message}"
+    return message
+
+
+def _show_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
+    """Warnings meant for the user as ``warning:`` lines on stderr; numpy's floating-point
+    RuntimeWarnings (and warnings for developers) never reach the terminal."""
+    hidden = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+    shown: list[str] = []
+    for w in caught:
+        if w.category is RuntimeWarning or issubclass(w.category, hidden):
+            continue
+        text = f"warning: {_one_line(str(w.message))}"
+        if text not in shown:
+            shown.append(text)
+    for text in shown:
+        click.echo(text, err=True)
+
+
 class _Group(click.Group):
-    """A click group whose commands report user errors in one line with exit code 2."""
+    """The one error path of the commands.
+
+    - usage errors (unknown option, bad value, missing argument): one ``Error:`` line, exit 2;
+    - errors in the user's input (:data:`_USER_ERRORS`): one ``Error:`` line, exit 2;
+    - Ctrl-C: ``Interrupted; ...`` naming the files completed, exit 130 (every file is written
+      atomically, so nothing is left half-written);
+    - anything else is a bug: one line asking for a report, exit 1 (the traceback with
+      ``FIELDCAL_DEBUG=1``).
+
+    Warnings are collected: numpy's floating-point RuntimeWarnings are dropped, others are
+    printed as one ``warning:`` line each after a command that succeeded.
+    """
+
+    def make_context(
+        self,
+        info_name: str | None,
+        args: list[str],
+        parent: click.Context | None = None,
+        **extra: Any,
+    ) -> click.Context:
+        try:
+            return super().make_context(info_name, args, parent, **extra)
+        except click.exceptions.NoArgsIsHelpError:
+            raise  # `fieldcal` alone prints the help
+        except click.UsageError as exc:
+            raise _UsageError.of(exc) from None
 
     def invoke(self, ctx: click.Context) -> object:
-        try:
-            return super().invoke(ctx)
-        except _USER_ERRORS as exc:
-            message = " ".join(str(exc).split()) or type(exc).__name__
-            if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in message:
-                message = f"{exc.filename}: {message}"
-            click.echo(f"Error: {message}", err=True)
-            ctx.exit(EXIT_USAGE)
+        debug = _debug()
+        caught: list[warnings.WarningMessage] = []
+        succeeded = False
+        with _files.record() as done:
+            try:
+                with warnings.catch_warnings(record=not debug) as recorded:
+                    if recorded is not None:
+                        warnings.simplefilter("always")
+                        caught = recorded
+                    result = super().invoke(ctx)
+                succeeded = True
+                return result
+            except click.exceptions.Exit as exc:
+                succeeded = exc.exit_code in (EXIT_OK, EXIT_FAIL)
+                raise
+            except click.UsageError as exc:
+                raise _UsageError.of(exc) from None
+            except (click.ClickException, click.Abort, BrokenPipeError):
+                raise  # click's own handling (a closed pipe ends quietly)
+            except KeyboardInterrupt:
+                wrote = ", ".join(str(p) for p in done)
+                click.echo(
+                    f"Interrupted; completed {wrote}; nothing else was written"
+                    if done
+                    else "Interrupted; nothing was written",
+                    err=True,
+                )
+                ctx.exit(EXIT_INTERRUPTED)
+            except _USER_ERRORS as exc:
+                click.echo(f"Error: {_user_message(exc)}", err=True)
+                ctx.exit(EXIT_USAGE)
+            except Exception as exc:
+                message = _one_line(str(exc))
+                click.echo(
+                    f"Error: {type(exc).__name__}{': ' + message if message else ''}; this is a "
+                    "bug in fieldcal; please report it with the command "
+                    f"({_DEBUG}=1 shows the traceback)",
+                    err=True,
+                )
+                if debug:
+                    raise
+                ctx.exit(EXIT_BUG)
+            finally:
+                if succeeded:
+                    _show_warnings(caught)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -138,12 +276,102 @@ def main() -> None:
     cli(prog_name="fieldcal")
 
 
+if TYPE_CHECKING:  # generic from click 8.2 on; fieldcal supports 8.1
+    _NumberBase = click.ParamType[float]
+else:
+    _NumberBase = click.ParamType
+
+
+class _Number(_NumberBase):
+    """A finite number in a range, checked when the option is parsed (a one-line error naming
+    the option and the range)."""
+
+    name = "number"
+
+    def __init__(self, low: float, high: float, *, low_open: bool = True) -> None:
+        self.low, self.high, self.low_open = low, high, low_open
+
+    def convert(
+        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+    ) -> float:
+        if isinstance(value, float):
+            number = value
+        else:
+            try:
+                number = float(str(value).strip())
+            except ValueError:
+                self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        below = number <= self.low if self.low_open else number < self.low
+        if below or number > self.high:
+            low = "above" if self.low_open else "at least"
+            self.fail(
+                f"{value} is out of range; give a number {low} {self.low:g} and at most "
+                f"{self.high:g}",
+                param,
+                ctx,
+            )
+        return number
+
+
+#: Positive magnitudes (fields, thresholds, noise): their squares stay finite and normal.
+_MAGNITUDE = _Number(1 / _BIG, _BIG, low_open=False)
+#: Sample rates (Hz) and durations (seconds, or samples without a rate).
+_POSITIVE = _Number(0.0, 1e12)
+_NON_NEGATIVE = _Number(0.0, 1e12, low_open=False)
+
+
+def _force(f: _Command) -> _Command:
+    decorated: _Command = click.option(
+        "--force",
+        is_flag=True,
+        help="Replace output files that exist (never an input of the command).",
+    )(f)
+    return decorated
+
+
+def _claim(
+    outputs: Sequence[str | Path | None],
+    inputs: dict[str, str],
+    force: bool,
+    *,
+    folders_made: bool = False,
+) -> None:
+    """Check the outputs before any work (:func:`fieldcal._files.check_outputs`)."""
+    _files.check_outputs(
+        [o for o in outputs if o is not None], inputs, force=force, folders_made=folders_made
+    )
+
+
+@contextmanager
+def _progress(quiet: bool) -> Iterator[_Progress]:
+    """A status line on stderr showing the library's progress messages, or ``None``: off
+    with ``--quiet`` and when stderr is not a terminal (a pipe, a file, a test)."""
+    stream = sys.stderr
+    if quiet or stream is None or not stream.isatty():
+        yield None
+        return
+    text = _lazy("rich.text").Text
+    status = _console(stderr=True).status(text("working"), spinner="dots")
+    with status:
+        yield lambda line: status.update(text(_one_line(line)))
+
+
 # ----------------------------------------------------------------------------- helpers
 def _read_cal(path: str) -> Calibration:
     file = Path(path)
+    if file.is_dir():
+        raise InputError(f"{path}: is a folder; give the calibration JSON inside it")
     if not file.is_file():
         raise InputError(f"{path}: no such calibration file; write one with `fieldcal calibrate`")
-    return Calibration.from_json(file.read_text(encoding="utf-8"))
+    try:
+        text = file.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(
+            f"{path}: not a text file; give the calibration JSON `fieldcal calibrate` wrote"
+        ) from None
+    return Calibration.from_json(text)
 
 
 def _finish(cal: Calibration, *, summary_shown: bool) -> None:
@@ -155,28 +383,34 @@ def _finish(cal: Calibration, *, summary_shown: bool) -> None:
     click.get_current_context().exit(EXIT_FAIL)
 
 
+def _magnitude(text: str) -> float:
+    """A standard deviation as ``--noise`` takes it: finite, within [1/_BIG, _BIG]."""
+    value = float(text)
+    if not (math.isfinite(value) and 1 / _BIG <= value <= _BIG):
+        raise ValueError
+    return value
+
+
 def _parse_noise(text: str | None) -> float | dict[str, float] | None:
     """``"0.01"`` -> 0.01 for both sensors; ``"accel=0.01,mag=0.2"`` -> a per-sensor dict."""
     if text is None:
         return None
     try:
         if "=" not in text:
-            value = float(text)
-            if not value > 0:
-                raise ValueError
-            return value
+            return _magnitude(text)
         out = {}
         for part in text.split(","):
             key, _, number = part.partition("=")
             key = key.strip().lower()
-            if key not in ("accel", "mag") or not float(number) > 0:
+            if key not in ("accel", "mag"):
                 raise ValueError
-            out[key] = float(number)
+            out[key] = _magnitude(number)
         return out
     except ValueError:
         raise InputError(
-            f"--noise {text!r} is not understood; give one positive standard deviation of a raw "
-            "sample (e.g. 0.01) or per sensor, e.g. accel=0.01,mag=0.2"
+            f"--noise {text!r} is not understood; give one standard deviation of a raw sample "
+            f"between {1 / _BIG:g} and {_BIG:g} (e.g. 0.01) or one per sensor, e.g. "
+            "accel=0.01,mag=0.2"
         ) from None
 
 
@@ -188,10 +422,11 @@ def _pose_noise_value(text: str, spec: str) -> str | float:
         value = float(word)
     except ValueError:
         value = float("nan")
-    if not (np.isfinite(value) and value >= 0):
+    if not (math.isfinite(value) and 0 <= value <= _BIG):
         raise InputError(
             f"--pose-noise {spec!r} is not understood; give auto (estimate it), none (zero), a "
-            "standard deviation in raw units (e.g. 0.01), or per sensor, e.g. accel=0.01,mag=0.2"
+            f"standard deviation in raw units from 0 to {_BIG:g} (e.g. 0.01), or per sensor, "
+            "e.g. accel=0.01,mag=0.2"
         )
     return value
 
@@ -230,21 +465,25 @@ def _log_options(f: _Command) -> _Command:
 
 def _detect_options(f: _Command) -> _Command:
     options = [
-        click.option("--rate", type=float, help="Sample rate in Hz when there is no time column."),
+        click.option(
+            "--rate", type=_POSITIVE, help="Sample rate in Hz when there is no time column."
+        ),
         click.option(
             "--min-still",
-            type=float,
+            type=_POSITIVE,
             help="Shortest still interval: seconds (samples without time/rate). Default 1 s / 50.",
         ),
         click.option(
             "--window",
-            type=float,
+            type=_POSITIVE,
             help="Moving-variance window: seconds (samples without time/rate). Default 0.5 s / 25.",
         ),
-        click.option("--trim", type=float, help="Cut at each end of an interval (s or samples)."),
+        click.option(
+            "--trim", type=_NON_NEGATIVE, help="Cut at each end of an interval (s or samples)."
+        ),
         click.option(
             "--still-threshold",
-            type=float,
+            type=_MAGNITUDE,
             help="Accelerometer threshold, per-axis std in raw units (default: 3x noise floor).",
         ),
     ]
@@ -269,12 +508,13 @@ def _load(log: str, cols: _LogOptions) -> Log:
 
 
 def _run_calibration(
-    log: Log, opts: _ParsedOptions
+    log: Log, opts: _ParsedOptions, progress: _Progress = None
 ) -> tuple[Calibration, PoseSet, dict[str, Any], list[str]]:
     """Poses, calibration, the JSON document and the notes on the input for a loaded log.
 
     ``opts`` holds the ``calibrate`` command's options (``pose_noise`` parsed); any left out
     take the library's defaults (the method, robust fitting, estimated pose-level noise).
+    ``progress`` hears the steps (and the library's progress lines) when given.
     """
     logs, pipeline = _lazy(".logs"), _lazy(".pipeline")
     notes = [
@@ -294,6 +534,8 @@ def _run_calibration(
             f"magnetometer axes mapped {opts['mag_axes']} for the fit and folded back into its "
             "gain: apply the result to the raw columns as logged"
         )
+    if progress is not None:
+        progress(f"finding the poses in {log.path}")
     poses: PoseSet = logs.poses_from_log(
         log,
         rate=opts.get("rate"),
@@ -317,6 +559,9 @@ def _run_calibration(
     if opts.get("no_robust"):
         # trimming bumps inside a pose is part of the robust fit: off together
         choices.update(robust=False, trim=False)
+    if progress is not None:
+        progress(f"calibrating {poses.n} poses ({opts.get('method') or _DEFAULT_METHOD})")
+        choices["on_progress"] = progress
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cal: Calibration = pipeline.calibrate_log(
@@ -330,13 +575,16 @@ def _run_calibration(
             mag_mirrored=bool(opts.get("mag_mirrored")),
             **choices,
         )
-    # the library's warnings belong in the summary, not as tracebacks
-    notes += [f"warning: {' '.join(str(w.message).split())}" for w in caught]
+    # the library's warnings belong in the summary, not as tracebacks; numpy's floating-point
+    # RuntimeWarnings are the library's business and never reach the terminal
+    notes += [
+        f"warning: {_one_line(str(w.message))}" for w in caught if w.category is not RuntimeWarning
+    ]
     return cal, poses, pipeline.document(cal, poses), notes
 
 
 def _write_json(path: str | Path, doc: dict[str, object]) -> None:
-    Path(path).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    _files.write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
 
 
 # ----------------------------------------------------------------------------- calibrate
@@ -356,8 +604,8 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     + "; ".join(f"{m.name}, {m.summary}" for m in METHODS.values())
     + ".",
 )
-@click.option("--gravity", type=float, help="|g| for calibrated accel units (e.g. 9.80665).")
-@click.option("--field-strength", type=float, help="|h| for calibrated mag units (e.g. 48.5).")
+@click.option("--gravity", type=_MAGNITUDE, help="|g| for calibrated accel units (e.g. 9.80665).")
+@click.option("--field-strength", type=_MAGNITUDE, help="|h| for calibrated mag units (e.g. 48.5).")
 @click.option(
     "--noise",
     help="Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
@@ -391,11 +639,13 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     help="Print the result as JSON instead of the summary (writes a file only with -o).",
 )
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors and a fail verdict.")
+@_force
 def calibrate(
     log: str,
     output: str | None,
     as_json: bool,
     quiet: bool,
+    force: bool,
     pose_noise: str,
     **opts: Unpack[_CalibrateOptions],
 ) -> None:
@@ -404,12 +654,17 @@ def calibrate(
     The verdict (PASS, WARN or FAIL, with reasons) comes first. Exit code 3 when it is FAIL;
     the JSON is written all the same.
     """
-    # --pose-noise is parsed before the slow part
-    options: _ParsedOptions = {**opts, "pose_noise": _parse_pose_noise(pose_noise)}
-    data = _load(log, options)
-    cal, _, doc, notes = _run_calibration(data, options)
     if output is None and not as_json:
         output = _DEFAULT_OUTPUT
+    _claim([output], {"log": log}, force)
+    # the options given as text are parsed before the slow part
+    options: _ParsedOptions = {**opts, "pose_noise": _parse_pose_noise(pose_noise)}
+    _parse_noise(opts.get("noise"))
+    with _progress(quiet) as progress:
+        if progress is not None:
+            progress(f"reading {log}")
+        data = _load(log, options)
+        cal, _, doc, notes = _run_calibration(data, options, progress)
     if output is not None:
         _write_json(output, doc)
     if as_json:
@@ -425,16 +680,39 @@ def calibrate(
 @cli.command()
 @click.argument("cal_json", type=click.Path())
 @click.argument("log", type=click.Path())
-@click.option("-o", "--output", required=True, help="Output CSV with calibrated columns.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    help="The log with calibrated columns, in the format of its suffix (.csv, .parquet, .npz).",
+)
 @click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
+@_force
 def apply(
-    cal_json: str, log: str, output: str, accel_cols: str | None, mag_cols: str | None, quiet: bool
+    cal_json: str,
+    log: str,
+    output: str,
+    accel_cols: str | None,
+    mag_cols: str | None,
+    quiet: bool,
+    force: bool,
 ) -> None:
-    """Append calibrated columns (<col>_cal) to LOG; large CSV files are streamed."""
+    """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
+
+    The output's suffix names its format; CSV to CSV is streamed, line by line.
+    """
+    _claim([output], {"calibration": cal_json, "log": log}, force)
+    logs = _lazy(".logs.apply")
+    logs.check_pyarrow(log, output)
     cal = _read_cal(cal_json)
-    used = _lazy(".logs").apply_to_file(cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols)
+    with _progress(quiet) as progress:
+        if progress is not None:
+            progress(f"applying the calibration to {log}")
+        used = logs.apply_to_file(
+            cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols, on_progress=progress
+        )
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
         _console().print(f"calibrated {cols} -> {output}")
@@ -453,30 +731,47 @@ _SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values())
     help=f"Target convention. [default: from -o's suffix ({_SUFFIXES}), else {exports.DEFAULT}]",
 )
 @click.option("-o", "--output", help="Write to this file instead of stdout.")
-def export(cal_json: str, fmt: str | None, output: str | None) -> None:
+@_force
+def export(cal_json: str, fmt: str | None, output: str | None, force: bool) -> None:
     """Write the calibration for firmware or another tool, its convention stated in the text."""
+    _claim([output], {"calibration": cal_json}, force)
     if fmt is None:
         by_suffix = exports.for_path(output) if output else None
         fmt = by_suffix.name if by_suffix else exports.DEFAULT
     text = exports.export(_read_cal(cal_json), fmt)
     if output:
-        Path(output).write_text(text if text.endswith("\n") else text + "\n", encoding="utf-8")
+        _files.write_text(output, text if text.endswith("\n") else text + "\n")
     else:
         click.echo(text.rstrip("\n"))
 
 
 # ----------------------------------------------------------------------------- simulate
 @cli.command()
-@click.option("--preset", default="paper", show_default=True, help="Simulation preset.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option(
+    "--preset",
+    type=click.Choice(list(PRESETS)),
+    default="paper",
+    show_default=True,
+    help="Simulation preset.",
+)
+@click.option(
+    "--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed."
+)
 @click.option("-o", "--output", default="session.csv", show_default=True, help="Session CSV.")
 @click.option("--truth", help="Also write the true calibration as JSON.")
 @click.option("--continuous", is_flag=True, help="Time-stamped log with motion between poses.")
-@click.option("--poses", type=int, help="Number of poses (preset default: 15).")
+@click.option("--poses", type=click.IntRange(1, 1000), help="Number of poses (preset default: 15).")
 @click.option(
     "--handheld", is_flag=True, help="Hand-held poses (mostly < 60° tilt) instead of uniform."
 )
-@click.option("--rate", type=float, default=100.0, show_default=True, help="Hz (--continuous).")
+@click.option(
+    "--rate",
+    type=_Number(10.0, 10_000.0, low_open=False),
+    default=100.0,
+    show_default=True,
+    help="Hz (--continuous).",
+)
+@_force
 def simulate(
     preset: str,
     seed: int,
@@ -486,8 +781,10 @@ def simulate(
     poses: int | None,
     handheld: bool,
     rate: float,
+    force: bool,
 ) -> None:
     """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
+    _claim([output, truth], {}, force)
     extra: Preset = {"n_poses": poses} if poses else {}
     if handheld:
         extra["pose_distribution"] = "handheld"
@@ -495,7 +792,8 @@ def simulate(
         log = _lazy(".simulation.continuous").simulate_continuous(
             preset, seed=seed, rate=rate, **extra
         )
-        log.write_csv(output)
+        with _files.replacing(output) as temp:
+            log.write_csv(str(temp))
         session: Session = log.session
     else:
         session = simulate_session(preset, seed=seed, **extra)
@@ -507,34 +805,63 @@ def simulate(
                 np.concatenate(session.mag),
             ]
         )
-        np.savetxt(
-            output,
-            data,
-            delimiter=",",
-            header="pose,ax,ay,az,mx,my,mz",
-            comments="",
-            fmt=["%d"] + ["%.9g"] * 6,
-        )
+        with _files.replacing(output) as temp:
+            np.savetxt(
+                temp,
+                data,
+                delimiter=",",
+                header="pose,ax,ay,az,mx,my,mz",
+                comments="",
+                fmt=["%d"] + ["%.9g"] * 6,
+            )
     if truth:
-        Path(truth).write_text(session.truth.to_json() + "\n", encoding="utf-8")
+        _files.write_text(truth, session.truth.to_json() + "\n")
     click.echo(f"wrote {output}" + (f" and {truth}" if truth else ""))
 
 
 # ----------------------------------------------------------------------------- report
+def _check_matplotlib() -> None:
+    if importlib.util.find_spec("matplotlib") is None:
+        raise InputError(
+            "the report needs matplotlib, which is not installed; pip install 'fieldcal[plot]'"
+        )
+
+
 @cli.command()
 @click.argument("cal_json", type=click.Path())
 @click.argument("log", type=click.Path())
 @click.option("-o", "--output", default="report.html", show_default=True, help="HTML report.")
 @click.option("--png", "png_dir", help="Also write each figure as PNG into this folder.")
 @_log_options
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
+@_force
 def report(
-    cal_json: str, log: str, output: str, png_dir: str | None, **cols: Unpack[_LogOptions]
+    cal_json: str,
+    log: str,
+    output: str,
+    png_dir: str | None,
+    quiet: bool,
+    force: bool,
+    **cols: Unpack[_LogOptions],
 ) -> None:
     """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
+    inputs = {"calibration": cal_json, "log": log}
+    _claim([output], inputs, force)
+    report_module = _lazy(".output.report")
+    if png_dir is not None:
+        pngs = [Path(png_dir) / f"{name}.png" for name in report_module.FIGURES]
+        _claim(pngs, inputs, force, folders_made=True)
+    _check_matplotlib()
     cal = _read_cal(cal_json)
-    data = _load(log, cols)
-    _lazy(".output.report").write_report(cal, data, output, png_dir=png_dir)
-    click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
+    with _progress(quiet) as progress:
+        if progress is not None:
+            progress(f"reading {log}")
+        data = _load(log, cols)
+        if progress is not None:
+            progress("drawing the report")
+        report_module.write_report(cal, data, output, png_dir=png_dir)
+    if not quiet:
+        click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
 
 
 # ----------------------------------------------------------------------------- demo
@@ -555,11 +882,18 @@ def _deltas(session: Session, cal: Calibration, n_found: int) -> dict[str, float
 
 
 @cli.command()
-@click.option("--seed", type=int, default=1, show_default=True, help="Random seed.")
+@click.option(
+    "--seed", type=click.IntRange(min=0), default=1, show_default=True, help="Random seed."
+)
 @click.option("--out", "out_dir", help="Folder for session.csv, cal.json and report.html.")
 @click.option("--no-report", is_flag=True, help="Skip the HTML report.")
-def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
+@_force
+def demo(seed: int, out_dir: str | None, no_report: bool, force: bool) -> None:
     """Simulate a Table 1 session as a continuous log, find its poses, calibrate, compare."""
+    with_report = not no_report and importlib.util.find_spec("matplotlib") is not None
+    if out_dir:
+        names = ["session.csv", "cal.json"] + (["report.html"] if with_report else [])
+        _claim([Path(out_dir) / name for name in names], {}, force, folders_made=True)
     load_log = _lazy(".logs").load_log
     summary = _lazy(".output.summary")
     console = _console()
@@ -568,24 +902,29 @@ def demo(seed: int, out_dir: str | None, no_report: bool) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     sim = _lazy(".simulation.continuous").simulate_continuous("paper", seed=seed)
     log_path = folder / "session.csv"
-    sim.write_csv(str(log_path))
+    with _files.replacing(log_path) as temp:
+        sim.write_csv(str(temp))
     console.print(
         f"simulated a session of the seed paper's Table 1 as a continuous log: "
         f"{sim.session.truth.n_poses} poses, "
         f"{len(sim.columns['t'])} samples at {sim.rate:g} Hz -> {log_path}"
     )
-    cal, poses, doc, notes = _run_calibration(load_log(log_path), {})
+    with _progress(False) as progress:
+        cal, poses, doc, notes = _run_calibration(load_log(log_path), {}, progress)
     _write_json(folder / "cal.json", doc)
     summary.print_summary(console, cal, doc, notes)
     summary.print_truth_comparison(
         console, sim.session.truth, cal, _deltas(sim.session, cal, poses.n)
     )
-    if not no_report and importlib.util.find_spec("matplotlib") is None:
+    if not no_report and not with_report:
         console.print(
             "matplotlib is not installed: skipped the report (pip install 'fieldcal[plot]')"
         )
-    elif not no_report:
-        _lazy(".output.report").write_report(cal, load_log(log_path), folder / "report.html")
+    elif with_report:
+        with _progress(False) as progress:
+            if progress is not None:
+                progress("drawing the report")
+            _lazy(".output.report").write_report(cal, load_log(log_path), folder / "report.html")
         console.print(f"report: {folder / 'report.html'}")
     console.print(f"done in {time.perf_counter() - started:.1f} s; files in {folder}")
     _finish(cal, summary_shown=True)

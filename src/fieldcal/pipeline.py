@@ -114,22 +114,17 @@ def calibrate_log(
     found is listed; a pose the robust fit dropped has ``rejected`` set to the reason.
     """
     _check_poses(poses, method)
-    try:
-        cal = calibrate(
-            poses.accel,
-            poses.mag,
-            method=method,
-            gravity=gravity,
-            field_strength=field_strength,
-            noise=noise,
-            mag_mirrored=mag_mirrored,
-            **options,
-        )
-    except np.linalg.LinAlgError as exc:
-        raise InputError(
-            f"the poses cannot determine the calibration ({exc}); add orientations with each "
-            "axis pointing up and down"
-        ) from None
+    # numpy's errors and warnings stay inside: calibrate says what is wrong in one line
+    cal = calibrate(
+        poses.accel,
+        poses.mag,
+        method=method,
+        gravity=gravity,
+        field_strength=field_strength,
+        noise=noise,
+        mag_mirrored=mag_mirrored,
+        **options,
+    )
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
     fitted = {int(row["index"]): row for row in cal.poses}

@@ -90,7 +90,26 @@ def _float(value: object, where: str) -> float:
         if value not in ("nan", "inf", "-inf"):
             _fail(where, f"must be a number, not the text {value[:20]!r}")
         return float(value)
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        _fail(where, "is too large a number")
+
+
+#: Deepest nesting of lists and objects in free-form values (options, pose rows).
+_MAX_DEPTH = 32
+
+
+def _plain(value: object, where: str, depth: int = 0) -> object:
+    """A free-form JSON value (``typing.Any``) checked to nest at most :data:`_MAX_DEPTH`
+    deep, so writing it again cannot exhaust the stack."""
+    if depth > _MAX_DEPTH:
+        _fail(where, "is nested too deeply")
+    if isinstance(value, dict):
+        return {k: _plain(v, where, depth + 1) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_plain(v, where, depth + 1) for v in value]
+    return value
 
 
 def _array(value: object, where: str, shape: tuple[int, ...] | None) -> NDArray[np.float64]:
@@ -103,8 +122,9 @@ def _array(value: object, where: str, shape: tuple[int, ...] | None) -> NDArray[
 
     if not isinstance(value, list):
         _fail(where, f"must be a list of numbers, not {type(value).__name__}")
+    numbers = walk(value, 0)
     try:
-        array = np.array(walk(value, 0), dtype=float)
+        array = np.array(numbers, dtype=float)
     except ValueError:
         _fail(where, "has rows of different lengths")
     if shape is not None:
@@ -162,8 +182,8 @@ def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, An
             for k, v in value.items():
                 if not isinstance(v, str):
                     _fail(f"{where}.{k}", "must be text")
-        return dict(value)
-    return value  # typing.Any: kept as read
+        return _plain(value, where)
+    return _plain(value, where)  # typing.Any: kept as read
 
 
 def decode(cls: type[_D], data: object, where: str = "document") -> _D:

@@ -1,29 +1,100 @@
-"""Streaming apply: a log with calibrated columns appended, written as CSV."""
+"""Apply a calibration to a log file: calibrated columns appended, everything else kept as it was.
+
+:func:`apply_to_file` writes the output in the format its suffix names (``.csv`` or any other
+text suffix, ``.parquet``/``.pq``, ``.npz``), atomically (:func:`fieldcal._files.replacing`):
+an error or Ctrl-C half-way leaves the previous output untouched and no fragment.
+
+- Text in, text out is streamed ``CHUNK_ROWS`` rows at a time, so files larger than memory
+  work: every input line is copied byte for byte (comment and blank lines in place, the
+  line endings, a byte-order mark) and the calibrated values follow each data line.
+- Otherwise the table is read in its own types and written whole: Parquet keeps its schema
+  (column types and metadata), NPZ each array as it was (dtype and shape; an ``(n, 3)`` sensor
+  array gets an ``(n, 3)`` ``<name>_cal``), and columns written as text keep their full
+  precision (the shortest text that reads back as the same value of their type).
+
+Calibrated values are doubles; as text, the shortest text that reads back as the same double.
+pyarrow (Parquet) loads only when a Parquet file is read or written.
+"""
 
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+import importlib
+import importlib.util
+import io
+import stat
+import time
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._files import replacing, same_file
 from ..errors import InputError
 from .columns import explicit_columns, recognise_columns
-from .readers import Table, _data_lines, _sniff_delimiter, _split, read_table, to_float
+from .readers import Table, _sniff_delimiter, _split, read_table, to_float
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
 
-__all__ = ["apply_to_file"]
+__all__ = ["CHUNK_ROWS", "apply_to_file", "check_pyarrow", "output_format"]
 
 Array = NDArray[np.float64]
 
+#: Rows per chunk when a text log is streamed.
+CHUNK_ROWS = 50_000
+#: Seconds between two progress reports.
+PROGRESS_SECONDS = 1.0
 
-def _format(values: NDArray[np.generic]) -> NDArray[np.str_]:
-    return np.char.mod("%.9g", values)
+_PARQUET = (".parquet", ".pq")
+_NPZ = ".npz"
+_INSTALL = "pip install 'fieldcal[parquet]'"
+
+
+def output_format(path: str | Path) -> str:
+    """The format a path's suffix names: ``"parquet"``, ``"npz"`` or ``"text"`` (any other).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    str
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in _PARQUET:
+        return "parquet"
+    return "npz" if suffix == _NPZ else "text"
+
+
+def check_pyarrow(*paths: str | Path) -> None:
+    """A one-line error when one of ``paths`` is Parquet and pyarrow is not installed.
+
+    Parameters
+    ----------
+    *paths : str or Path
+
+    Raises
+    ------
+    InputError
+        Naming ``pip install 'fieldcal[parquet]'``.
+    """
+    for path in paths:
+        if output_format(path) == "parquet" and importlib.util.find_spec("pyarrow") is None:
+            raise InputError(
+                f"{path}: Parquet needs pyarrow, which is not installed; {_INSTALL} (or use "
+                ".csv or .npz)"
+            )
+
+
+def _parquet() -> tuple[ModuleType, ModuleType]:
+    """pyarrow and pyarrow.parquet: the one place this module loads them."""
+    return importlib.import_module("pyarrow"), importlib.import_module("pyarrow.parquet")
 
 
 def apply_to_file(
@@ -33,95 +104,75 @@ def apply_to_file(
     *,
     accel_cols: str | Sequence[str] | None = None,
     mag_cols: str | Sequence[str] | None = None,
-    chunk_rows: int = 50_000,
+    chunk_rows: int | None = None,
+    on_progress: Callable[[str], None] | None = None,
 ) -> dict[str, list[str]]:
-    """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst`` as CSV.
+    """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``.
 
-    CSV input is streamed ``chunk_rows`` rows at a time, so files larger than memory work; each
-    input line is copied unchanged and the calibrated values follow it. Rows with a missing
-    value give ``nan``. Returns the columns used per sensor.
+    Parameters
+    ----------
+    cal : Calibration
+    src : str or Path
+        The log: CSV (any other suffix is delimited text), ``.npz`` or ``.parquet``.
+    dst : str or Path
+        The output, in the format its suffix names (see the module docstring); replaced
+        atomically if it exists. It must not be ``src`` (compared by file identity).
+    accel_cols, mag_cols : str or sequence of str, optional
+        The sensors' columns (default: recognised by name).
+    chunk_rows : int, optional
+        Rows per chunk when text is streamed (default :data:`CHUNK_ROWS`).
+    on_progress : callable, optional
+        Told the rows done about once a second while text is streamed (one line of text).
+
+    Returns
+    -------
+    dict of str -> list of str
+        The columns used per sensor.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable log, no columns for the calibrated sensors, a non-numeric
+        value (column, value and data row), a log that already has the ``_cal`` columns,
+        ``dst`` the log itself, or Parquet without pyarrow.
     """
     src, dst = Path(src), Path(dst)
-    if dst.resolve() == src.resolve():
-        raise InputError(f"{dst}: is the input log itself; write the output to another file")
-    sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
-    if src.suffix.lower() in (".npz", ".parquet", ".pq"):
-        return _apply_table(cal, read_table(src), dst, sensors, accel_cols, mag_cols)
-    if not src.exists() or src.is_dir():
-        raise InputError(f"{src}: no such file; check the path")
+    if same_file(src, dst):
+        raise InputError(f"{dst}: is the input log {src}; write the output to another file")
+    check_pyarrow(src, dst)
     try:
-        return _apply_csv(cal, src, dst, sensors, accel_cols, mag_cols, chunk_rows)
-    except UnicodeDecodeError:
-        raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
+        mode = src.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(f"{src}: no such file; check the path") from None
+    if stat.S_ISDIR(mode):
+        raise InputError(f"{src}: is a folder; give the log file inside it")
+    if not stat.S_ISREG(mode):  # a pipe would block, a device never end
+        raise InputError(f"{src}: is not a regular file; save the log to a file and give that")
+    sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
+    columns = {"accel": accel_cols, "mag": mag_cols}
+    if output_format(src) == output_format(dst) == "text":
+        try:
+            return _apply_text(
+                cal, src, dst, sensors, columns, chunk_rows or CHUNK_ROWS, on_progress
+            )
+        except UnicodeDecodeError:
+            raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
+        except csv.Error as exc:
+            raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
+    return _apply_table(cal, src, dst, sensors, columns)
 
 
-def _apply_csv(
-    cal: Calibration,
-    src: Path,
-    dst: Path,
-    sensors: list[str],
-    accel_cols: str | Sequence[str] | None,
-    mag_cols: str | Sequence[str] | None,
-    chunk_rows: int,
-) -> dict[str, list[str]]:
-    with src.open(newline="", encoding="utf-8-sig") as handle:
-        lines = _data_lines(handle)
-        header_line = next(lines, None)
-        if header_line is None:
-            raise InputError(f"{src}: the file is empty; give a CSV with a header line")
-        delimiter = _sniff_delimiter(header_line)
-        header = [h.strip() for h in _split([header_line], delimiter)[0]]
-        used = _columns_for_apply(str(src), header, sensors, accel_cols, mag_cols)
-        where = {s: [header.index(c) for c in cols] for s, cols in used.items()}
-        out_delim = delimiter or " "  # keep the input's separator
-        new_names = [f"{c}_cal" for s in used for c in used[s]]
-        row_number = 0
-        with dst.open("w", newline="", encoding="utf-8") as out:
-            out.write(out_delim.join([*header, *new_names]) + "\n")
-            while True:
-                chunk = [line for _, line in zip(range(chunk_rows), lines, strict=False)]
-                if not chunk:
-                    break
-                rows = _split(chunk, delimiter)
-                blocks = []
-                for sensor, idx in where.items():
-                    try:
-                        raw = np.array([[r[i] for i in idx] for r in rows], dtype=str)
-                    except IndexError:
-                        raise InputError(
-                            f"{src}: a row near data row {row_number + 1} has too few fields; "
-                            "fix the file"
-                        ) from None
-                    values = np.column_stack(
-                        [
-                            to_float(raw[:, k], used[sensor][k], str(src), row_number)
-                            for k in range(3)
-                        ]
-                    )
-                    fix = cal.correct_accel if sensor == "accel" else cal.correct_mag
-                    blocks.append(_format(fix(values)))
-                appended = np.concatenate(blocks, axis=1)
-                tails = [out_delim.join(v) for v in appended]
-                out.writelines(
-                    f"{line.rstrip(chr(13) + chr(10))}{out_delim}{tail}\n"
-                    for line, tail in zip(chunk, tails, strict=True)
-                )
-                row_number += len(chunk)
-    return used
-
-
+# ----------------------------------------------------------------------------- shared
 def _columns_for_apply(
     path: str,
     header: list[str],
     sensors: list[str],
-    accel_cols: str | Sequence[str] | None,
-    mag_cols: str | Sequence[str] | None,
+    columns: dict[str, str | Sequence[str] | None],
 ) -> dict[str, list[str]]:
     guessed = recognise_columns(header)
-    explicit = {"accel": explicit_columns(accel_cols), "mag": explicit_columns(mag_cols)}
     used: dict[str, list[str]] = {}
     for sensor in sensors:
-        cols = explicit[sensor] or guessed.get(sensor)
+        cols = explicit_columns(columns[sensor]) or guessed.get(sensor)
         if cols is None:
             continue
         missing = [c for c in cols if c not in header]
@@ -138,27 +189,280 @@ def _columns_for_apply(
     return used
 
 
-def _apply_table(
+def _check_new(path: str, existing: Sequence[str], new: Sequence[str]) -> None:
+    clash = [name for name in new if name in existing]
+    if clash:
+        raise InputError(
+            f"{path}: already has the column {clash[0]!r}: the log was calibrated before; "
+            "apply the calibration to the raw log"
+        )
+
+
+def _correct(cal: Calibration, sensor: str, raw: Array) -> Array:
+    return cal.correct_accel(raw) if sensor == "accel" else cal.correct_mag(raw)
+
+
+def _text(values: NDArray[Any]) -> list[str]:
+    """Each value as the shortest text that reads back as the same value of its type."""
+    if values.dtype == np.float64:
+        return list(map(repr, values.tolist()))  # Python's repr: shortest round trip
+    if values.dtype.kind == "O":
+        return ["" if v is None else str(v) for v in values.tolist()]
+    return values.astype(str).tolist()  # numpy's shortest round trip for float32 too
+
+
+# ----------------------------------------------------------------------------- text
+def _is_data(line: str) -> bool:
+    """Not blank and not a ``#`` comment (the readers' rule); a byte-order mark is ignored."""
+    content = line.lstrip("\ufeff").strip()
+    return bool(content) and not content.startswith("#")
+
+
+def _ending(line: str) -> tuple[str, str]:
+    body = line.rstrip("\r\n")
+    return body, line[len(body) :]
+
+
+def _apply_text(
     cal: Calibration,
-    table: Table,
+    src: Path,
     dst: Path,
     sensors: list[str],
-    accel_cols: str | Sequence[str] | None,
-    mag_cols: str | Sequence[str] | None,
+    columns: dict[str, str | Sequence[str] | None],
+    chunk_rows: int,
+    on_progress: Callable[[str], None] | None,
 ) -> dict[str, list[str]]:
-    used = _columns_for_apply(table.path, table.names, sensors, accel_cols, mag_cols)
-    out = {name: table.columns[name] for name in table.names}
-    for sensor, cols in used.items():
-        raw = np.column_stack([table.numeric(c) for c in cols])
-        fixed = cal.correct_accel(raw) if sensor == "accel" else cal.correct_mag(raw)
-        for c, column in zip(cols, fixed.T, strict=True):
-            out[f"{c}_cal"] = column
-    names = list(out)
-    text = np.column_stack(
-        [_format(v) if v.dtype.kind == "f" else v.astype(str) for v in out.values()]
-    )
-    with dst.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(names)
-        writer.writerows(text.tolist())
+    size = max(src.stat().st_size, 1)
+    with (
+        src.open(newline="", encoding="utf-8") as handle,
+        replacing(dst) as temp,
+        temp.open("w", newline="", encoding="utf-8") as out,
+    ):
+        lines: Iterator[str] = iter(handle)
+        header_line = None
+        for line in lines:
+            if _is_data(line):
+                header_line = line
+                break
+            out.write(line)  # comments and blank lines before the header, as they were
+        if header_line is None:
+            raise InputError(f"{src}: the file is empty; give a CSV with a header line")
+        body, ending = _ending(header_line)
+        content = body.lstrip("\ufeff")
+        delimiter = _sniff_delimiter(content)
+        header = [h.strip() for h in _split([content], delimiter)[0]]
+        used = _columns_for_apply(str(src), header, sensors, columns)
+        where = {s: [header.index(c) for c in cols] for s, cols in used.items()}
+        new_names = [f"{c}_cal" for cols in used.values() for c in cols]
+        _check_new(str(src), header, new_names)
+        sep = delimiter or " "
+        if delimiter is None:
+            names = sep.join(new_names)
+        else:  # quoted as the csv module quotes (a name holding the delimiter, a quote)
+            buffer = io.StringIO()
+            csv.writer(buffer, delimiter=delimiter, lineterminator="").writerow(new_names)
+            names = buffer.getvalue()
+        out.write(f"{body}{sep}{names}{ending or chr(10)}")
+
+        rows_done, chars, last = 0, len(header_line), time.monotonic()
+        while True:
+            chunk: list[tuple[str, str, bool]] = []
+            data = 0
+            for line in lines:
+                chars += len(line)
+                body, ending = _ending(line)
+                is_data = _is_data(line)
+                chunk.append((body, ending, is_data))
+                data += is_data
+                if data == chunk_rows:
+                    break
+            if not chunk:
+                break
+            tails = _tails(cal, src, chunk, delimiter, sep, where, used, rows_done)
+            it = iter(tails)
+            out.writelines(
+                f"{body}{sep}{next(it)}{ending}" if is_data else body + ending
+                for body, ending, is_data in chunk
+            )
+            rows_done += data
+            now = time.monotonic()
+            if on_progress is not None and now - last >= PROGRESS_SECONDS:
+                last = now
+                on_progress(f"apply: {rows_done:,} rows ({min(100 * chars / size, 100):.0f} %)")
     return used
+
+
+def _tails(
+    cal: Calibration,
+    src: Path,
+    chunk: list[tuple[str, str, bool]],
+    delimiter: str | None,
+    sep: str,
+    where: dict[str, list[int]],
+    used: dict[str, list[str]],
+    first_row: int,
+) -> list[str]:
+    """The calibrated values to append to each data line of ``chunk``, as text."""
+    bodies = [body for body, _, is_data in chunk if is_data]
+    if not bodies:
+        return []
+    rows = _split(bodies, delimiter)
+    if len(rows) != len(bodies):
+        raise InputError(
+            f"{src}: a quoted field runs over several lines near data row {first_row + 1}; "
+            "apply copies the file line by line: write the log as .npz or .parquet"
+        )
+    texts: list[list[str]] = []
+    for sensor, idx in where.items():
+        try:
+            raw = np.array([[r[i] for i in idx] for r in rows], dtype=str)
+        except IndexError:
+            short = next(k for k, r in enumerate(rows) if len(r) <= max(idx))
+            raise InputError(
+                f"{src}: data row {first_row + short + 1} has too few fields; fix the file"
+            ) from None
+        values = np.column_stack(
+            [to_float(raw[:, k], used[sensor][k], str(src), first_row) for k in range(3)]
+        )
+        texts += [_text(column) for column in _correct(cal, sensor, values).T]
+    return [sep.join(fields) for fields in zip(*texts, strict=True)]
+
+
+# ----------------------------------------------------------------------------- tables
+def _read_npz(src: Path) -> tuple[dict[str, NDArray[Any]], bool]:
+    """Every array of an ``.npz`` as stored, and whether the archive was compressed."""
+    try:
+        with zipfile.ZipFile(src) as archive:
+            compressed = any(i.compress_type != zipfile.ZIP_STORED for i in archive.infolist())
+        with np.load(src, allow_pickle=False) as data:
+            arrays = {key: np.asarray(data[key]) for key in data.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(f"{src}: cannot read it as .npz ({exc}); give a readable file") from None
+    return arrays, compressed
+
+
+def _npz_columns(src: Path, arrays: dict[str, NDArray[Any]]) -> Table:
+    """The columns a reader sees in an ``.npz``: 1-D arrays, ``(n, 3)`` arrays as three."""
+    columns: dict[str, NDArray[Any]] = {}
+    for key, array in arrays.items():
+        if array.ndim == 2 and array.shape[1] == 3:
+            for axis, column in zip("xyz", array.T, strict=True):
+                columns[f"{key}_{axis}"] = column
+        elif array.ndim == 1:
+            columns[key] = array
+    lengths = {len(v) for v in columns.values()}
+    if len(lengths) > 1:
+        raise InputError(f"{src}: arrays of different lengths {sorted(lengths)}; save equal rows")
+    return Table(str(src), list(columns), columns)
+
+
+def _parquet_columns(src: Path, table: Any) -> Table:
+    columns: dict[str, NDArray[Any]] = {}
+    for name in table.schema.names:
+        values = np.asarray(table.column(name).to_numpy(zero_copy_only=False))
+        if values.dtype.kind == "O":
+            values = np.array(["" if v is None else str(v) for v in values.tolist()], dtype=str)
+        columns[name] = values
+    return Table(str(src), list(columns), columns)
+
+
+def _apply_table(
+    cal: Calibration,
+    src: Path,
+    dst: Path,
+    sensors: list[str],
+    columns: dict[str, str | Sequence[str] | None],
+) -> dict[str, list[str]]:
+    fmt_in, fmt_out = output_format(src), output_format(dst)
+    arrays: dict[str, NDArray[Any]] = {}
+    compressed = False
+    arrow: Any = None
+    if fmt_in == "npz":
+        arrays, compressed = _read_npz(src)
+        table = _npz_columns(src, arrays)
+    elif fmt_in == "parquet":
+        pa, pq = _parquet()
+        try:
+            arrow = pq.read_table(src)
+        except Exception as exc:  # pyarrow's errors are many classes; all mean the same here
+            raise InputError(
+                f"{src}: cannot read it as Parquet ({' '.join(str(exc).split())}); give a "
+                "readable file"
+            ) from None
+        table = _parquet_columns(src, arrow)
+    else:
+        table = read_table(src)
+    used = _columns_for_apply(table.path, table.names, sensors, columns)
+    fixed = {
+        sensor: _correct(cal, sensor, np.column_stack([table.numeric(c) for c in cols]))
+        for sensor, cols in used.items()
+    }
+    new: dict[str, Array] = {
+        f"{c}_cal": column
+        for sensor, cols in used.items()
+        for c, column in zip(cols, fixed[sensor].T, strict=True)
+    }
+    _check_new(table.path, table.names, list(new))
+
+    if fmt_out == "npz":
+        if fmt_in == "npz":
+            out = dict(arrays)
+            for sensor, cols in used.items():
+                key = _sensor_array(arrays, cols)
+                if key is not None:  # an (n, 3) sensor array gets an (n, 3) calibrated one
+                    _check_new(table.path, list(arrays), [f"{key}_cal"])
+                    out[f"{key}_cal"] = fixed[sensor]
+                else:
+                    out.update({f"{c}_cal": new[f"{c}_cal"] for c in cols})
+        else:
+            out = {**table.columns, **new}
+        with replacing(dst) as temp:
+            _write_npz(temp, out, compressed)
+        return used
+    if fmt_in == "npz":
+        _only_columns(src, arrays)
+    if fmt_out == "parquet":
+        pa, pq = _parquet()
+        if arrow is None:
+            arrow = pa.table({name: table.columns[name] for name in table.names})
+        for name, column in new.items():
+            arrow = arrow.append_column(name, pa.array(column, type=pa.float64()))
+        with replacing(dst) as temp:
+            pq.write_table(arrow, str(temp))
+        return used
+    delimiter = "\t" if dst.suffix.lower() == ".tsv" else ","
+    names = [*table.names, *new]
+    texts = [_text(table.columns[name]) for name in table.names] + [_text(v) for v in new.values()]
+    with replacing(dst) as temp, temp.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle, delimiter=delimiter, lineterminator="\n")
+        writer.writerow(names)
+        writer.writerows(zip(*texts, strict=True))
+    return used
+
+
+def _sensor_array(arrays: dict[str, NDArray[Any]], cols: list[str]) -> str | None:
+    """The ``(n, 3)`` array ``cols`` were split from (``accel`` for ``accel_x..z``), if any."""
+    key = cols[0][:-2]
+    whole = arrays.get(key)
+    if whole is None or whole.ndim != 2 or whole.shape[1] != 3:
+        return None
+    return key if cols == [f"{key}_{axis}" for axis in "xyz"] else None
+
+
+def _only_columns(src: Path, arrays: dict[str, NDArray[Any]]) -> None:
+    """Refuse arrays a table cannot hold (rather than leaving them out of the output)."""
+    for key, array in arrays.items():
+        if not (array.ndim == 1 or (array.ndim == 2 and array.shape[1] == 3)):
+            raise InputError(
+                f"{src}: the array {key!r} (shape {array.shape}) is not a column; write the "
+                "output as .npz to keep it"
+            )
+
+
+def _write_npz(path: Path, arrays: dict[str, NDArray[Any]], compressed: bool) -> None:
+    """``np.savez`` by hand: any key (``np.savez`` reserves ``file``), no pickles."""
+    mode = zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED
+    with zipfile.ZipFile(path, "w", compression=mode, allowZip64=True) as archive:
+        for key, array in arrays.items():
+            with archive.open(f"{key}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)

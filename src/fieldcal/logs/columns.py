@@ -91,9 +91,15 @@ def recognise_columns(names: Sequence[str]) -> dict[str, list[str]]:
 
 
 def explicit_columns(spec: str | Sequence[str] | None) -> list[str] | None:
+    """``"ax,ay,az"`` or a sequence of three names as a list; ``None`` stays ``None``."""
     if spec is None:
         return None
-    names = [s.strip() for s in spec.split(",")] if isinstance(spec, str) else list(spec)
+    if isinstance(spec, str):
+        names = [s.strip() for s in spec.split(",")]
+    elif isinstance(spec, Sequence) and all(isinstance(s, str) for s in spec):
+        names = list(spec)
+    else:
+        names = []
     if len(names) != 3 or not all(names):
-        raise InputError(f"give three column names x,y,z, e.g. 'ax,ay,az'; got {spec!r}")
+        raise InputError(f"give three column names x,y,z, e.g. 'ax,ay,az'; got {spec!r}"[:200])
     return names

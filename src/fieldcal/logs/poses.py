@@ -3,6 +3,8 @@ pose's orientation label (revisits of one orientation share one)."""
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 from typing import TypedDict
 
@@ -11,7 +13,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .log import Log
-from .stillness import StillResult, detect_still
+from .stillness import StillResult, detect_still, power_of_two
 
 __all__ = ["PoseEntry", "PoseSet", "orientation_labels", "poses_from_log", "poses_orientations"]
 
@@ -45,25 +47,61 @@ class PoseSet:
         return len(self.entries)
 
 
+def _number(value: object) -> float:
+    """``value`` as a float, NaN when it is not a real number (text, a bool, None)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        return math.nan
+    return float(value)
+
+
 def _rate(log: Log, rate: float | None) -> float | None:
     if rate is not None:
-        if not (np.isfinite(rate) and rate > 0):
-            raise InputError(f"--rate must be a positive number of samples per second, got {rate}")
-        return float(rate)
+        hz = _number(rate)
+        if not (math.isfinite(hz) and hz > 0):
+            raise InputError(
+                f"--rate must be a positive number of samples per second, got {rate!r}"[:200]
+            )
+        return hz
     if log.time is not None and log.n > 1:
         step = float(np.median(np.diff(log.time)))
-        if step > 0:
+        if step > 0 and math.isfinite(1.0 / step):
             return 1.0 / step
     return None
 
 
 def _samples(
-    value: float | None, default_seconds: float, default_samples: int, rate: float | None
+    value: float | None,
+    option: str,
+    defaults: tuple[float, int],
+    rate: float | None,
+    n: int,
+    *,
+    zero: bool = False,
 ) -> int:
-    """A duration in seconds when the rate is known, else a number of samples."""
+    """A duration in seconds when the rate is known, else a number of samples; checked to be
+    a finite positive number (``zero``: or 0) and at most the log's ``n`` samples."""
     if value is None:
-        return round(default_seconds * rate) if rate else default_samples
-    return round(value * rate) if rate else round(value)
+        return max(1, round(defaults[0] * rate)) if rate else defaults[1]
+    number = _number(value)
+    unit = "seconds" if rate else "samples (no time column or --rate)"
+    if not (math.isfinite(number) and (number >= 0 if zero else number > 0)):
+        sign = "a non-negative" if zero else "a positive"
+        raise InputError(f"--{option} must be {sign} number of {unit}, got {value!r}"[:200])
+    samples = number * rate if rate else number
+    if samples > n:
+        at = f" ({samples:.6g} samples at {rate:g} Hz)" if rate else ""
+        raise InputError(
+            f"--{option} {number:g}{at} is longer than the log ({n} samples); give a shorter one"
+        )
+    return round(samples) if zero else max(1, round(samples))
+
+
+def _std(x: Array) -> float | None:
+    """RMS per-axis standard deviation (in any unit: computed on ``x`` over a power of two)."""
+    if len(x) < 2:
+        return None
+    scale = power_of_two(x)
+    return float(np.sqrt(np.mean((x / scale).var(axis=0)))) * scale
 
 
 def _label(value: object) -> str:
@@ -84,6 +122,8 @@ def _grouped(log: Log) -> tuple[list[NDArray[np.int64]], list[str]]:
     if rows.size == 0:
         raise InputError(f"{log.path}: the pose column {log.used['pose'][0]!r} has no labels")
     values, first, inverse = np.unique(labels[rows], return_index=True, return_inverse=True)
+    if len(values) == rows.size > 1:
+        _check_row_labels(log, rows)
     order = np.argsort(first)  # poses in the order they first appear in the log
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
@@ -92,6 +132,26 @@ def _grouped(log: Log) -> tuple[list[NDArray[np.int64]], list[str]]:
     counts = np.bincount(pose_of_row, minlength=len(order))
     groups = np.split(rows[sort], np.cumsum(counts)[:-1])
     return groups, [_label(values[i]) for i in order]
+
+
+def _check_row_labels(log: Log, rows: NDArray[np.int64]) -> None:
+    """Every row its own label: fine for shots (one averaged reading per pose, each in a new
+    orientation), a wrong column when neighbouring rows are far closer to each other than
+    rows half the log apart (the samples of a continuous log, labelled by a counter, the time
+    or a reading)."""
+    sensors = [x[rows] for x in (log.accel, log.mag) if x is not None]
+    d = np.hstack([_unit_directions(x) for x in sensors])
+    if len(d) < 4:
+        return
+    neighbours = float(np.median(np.linalg.norm(d[1:] - d[:-1], axis=1)))
+    apart = float(np.median(np.linalg.norm(d - np.roll(d, len(d) // 2, axis=0), axis=1)))
+    if neighbours < 0.25 * apart:
+        raise InputError(
+            f"{log.path}: the pose column {log.used['pose'][0]!r} gives every row its own label "
+            f"({rows.size} rows) though neighbouring rows read nearly the same: it does not label "
+            "poses; give a column with one label per pose, or leave --pose-col out to detect "
+            "the still intervals"
+        )
 
 
 def poses_from_log(
@@ -110,6 +170,14 @@ def poses_from_log(
     time column), otherwise samples; defaults 0.5 s / 25, 1 s / 50, a quarter window.
     """
     hz = _rate(log, rate)
+    if threshold is not None and not (math.isfinite(_number(threshold)) and threshold > 0):
+        raise InputError(
+            f"--still-threshold must be a positive per-axis standard deviation in the "
+            f"readings' units, got {threshold!r}"[:200]
+        )
+    factor_value = _number(factor)
+    if not (math.isfinite(factor_value) and factor_value > 0):
+        raise InputError(f"factor must be a positive number, got {factor!r}"[:200])
     detection = None
     entries: list[PoseEntry] = []
     ref = log.accel if log.accel is not None else log.mag
@@ -126,16 +194,17 @@ def poses_from_log(
                 }
             )
     else:
-        w = _samples(window, 0.5, 25, hz)
-        min_samples = _samples(min_still, 1.0, 50, hz)
+        w = _samples(window, "window", (0.5, 25), hz, log.n)
+        min_samples = _samples(min_still, "min-still", (1.0, 50), hz, log.n)
+        cut = None if trim is None else _samples(trim, "trim", (0.0, 0), hz, log.n, zero=True)
         detection = detect_still(
             ref,
             log.gyro,
             window=w,
             min_samples=min_samples,
-            trim=None if trim is None else _samples(trim, 0.0, 0, hz),
+            trim=cut,
             threshold=threshold,
-            factor=factor,
+            factor=factor_value,
         )
         if not detection.segments:
             unit = f"{min_samples / hz:g} s" if hz else f"{min_samples} samples"
@@ -158,7 +227,7 @@ def poses_from_log(
             entries.append(entry)
     for entry, rows in zip(entries, groups, strict=True):
         entry["samples"] = len(rows)
-        entry["std"] = float(np.sqrt(np.mean(ref[rows].var(axis=0)))) if len(rows) > 1 else None
+        entry["std"] = _std(ref[rows])
     poses = PoseSet(
         accel=None if log.accel is None else [log.accel[r] for r in groups],
         mag=None if log.mag is None else [log.mag[r] for r in groups],
@@ -180,20 +249,48 @@ def poses_orientations(poses: PoseSet) -> NDArray[np.int64]:
 
 def _directions(samples: list[Array]) -> Array:
     """Unit directions of the pose means about the mid-range point (a rough centre)."""
-    means = np.array([p.mean(axis=0) for p in samples])
-    centred = means - 0.5 * (means.max(axis=0) + means.min(axis=0))
-    return centred / np.maximum(np.linalg.norm(centred, axis=1, keepdims=True), 1e-300)
+    return _unit_directions(np.array([p.mean(axis=0) for p in samples]))
+
+
+def _unit_directions(points: Array) -> Array:
+    """Unit directions of ``points`` (n, 3) about their mid-range point; zero where a point is
+    the centre."""
+    scaled = points / power_of_two(points)
+    centred = scaled - 0.5 * (scaled.max(axis=0) + scaled.min(axis=0))
+    norm = np.linalg.norm(centred, axis=1, keepdims=True)
+    return np.divide(centred, norm, out=np.zeros_like(centred), where=norm > 0)
 
 
 def orientation_labels(directions: list[Array], tol_deg: float = 3.0) -> NDArray[np.int64]:
     """Label each pose with its orientation: poses closer than ``tol_deg`` in every sensor's
-    field direction share a label (0, 1, ... in order of first appearance)."""
+    field direction share a label (0, 1, ... in order of first appearance).
+
+    Greedy in the order of the poses: the first pose not yet labelled takes every later
+    unlabelled pose within ``tol_deg`` of it. Candidates come from a grid of cells as wide as
+    the chord of ``tol_deg`` over the first sensor's directions (the 27 cells around a pose
+    hold every direction within the tolerance), so N poses take O(N) work, not an N x N table.
+    """
+    n = len(directions[0])
     cos_tol = np.cos(np.radians(tol_deg))
-    same = np.ones((len(directions[0]),) * 2, dtype=bool)
-    for d in directions:
-        same &= d @ d.T > cos_tol
-    label = np.full(len(same), -1)
-    for i in range(len(same)):  # a loop over poses (tens), not samples
-        if label[i] < 0:
-            label[same[i] & (label < 0)] = i
-    return np.unique(label, return_inverse=True)[1]
+    chord = 2.0 * np.sin(np.radians(tol_deg) / 2.0)
+    cells = np.floor(directions[0] / chord).astype(np.int64)
+    members: dict[tuple[int, int, int], list[int]] = {}
+    for i, cell in enumerate(map(tuple, cells.tolist())):
+        members.setdefault(cell, []).append(i)
+    offsets = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
+    label = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):  # a loop over leaders; each compares against its neighbourhood at once
+        if label[i] >= 0:
+            continue
+        x, y, z = cells[i]
+        near = [members.get((x + a, y + b, z + c), ()) for a, b, c in offsets]
+        candidates = np.fromiter((j for cell in near for j in cell), dtype=np.int64)
+        candidates = candidates[label[candidates] < 0]
+        same = np.ones(len(candidates), dtype=bool)
+        for d in directions:
+            same &= d[candidates] @ d[i] > cos_tol
+        label[candidates[same]] = count
+        label[i] = count
+        count += 1
+    return label

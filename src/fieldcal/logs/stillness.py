@@ -1,6 +1,8 @@
 """Still-pose detection in a continuous log.
 
-Algorithm (all vectorised; cumulative sums give every moving-window statistic in O(n)):
+Algorithm (all vectorised; cumulative sums give every moving-window statistic in O(n)); each
+sensor's readings are first divided by an exact power of two (:func:`power_of_two`), so the
+result is the same in any unit, 1e-30 or 1e30:
 
 1. Moving variance of the accelerometer over a centred window of ``window`` samples (the sum of
    the three axes' variances), and, when a gyroscope is present, the moving mean of
@@ -22,6 +24,8 @@ Algorithm (all vectorised; cumulative sums give every moving-window statistic in
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +33,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 
-__all__ = ["Segment", "StillResult", "detect_still", "moving_variance"]
+__all__ = ["Segment", "StillResult", "detect_still", "moving_variance", "power_of_two"]
 
 Array = NDArray[np.float64]
 
@@ -112,6 +116,43 @@ def _moving_mean(x: Array, window: int) -> Array:
     return (c[hi] - c[lo]) / (hi - lo)
 
 
+def power_of_two(x: Array) -> float:
+    """The power of two nearest the largest ``|x|`` (1 for zeros): dividing by it changes no
+    digit, and the readings become of order one."""
+    largest = float(np.max(np.abs(x), initial=0.0))
+    if not (largest > 0 and math.isfinite(largest)):
+        return 1.0
+    return float(2.0 ** round(math.log2(largest)))
+
+
+def _real(value: object, name: str, *, minimum: float, inclusive: bool = True) -> float:
+    """A finite real number ``>= minimum`` (``> minimum`` unless ``inclusive``)."""
+    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
+    number = float(value) if ok else math.nan  # type: ignore[arg-type]  # checked just above
+    if not (math.isfinite(number) and (number >= minimum if inclusive else number > minimum)):
+        bound = f"at least {minimum:g}" if inclusive else f"above {minimum:g}"
+        raise InputError(f"{name} must be a finite number {bound}, got {value!r}"[:200])
+    return number
+
+
+def _count(value: object, name: str, minimum: int, n: int) -> int:
+    """A whole number of samples ``>= minimum``, capped at ``n + 1`` (no run is longer)."""
+    return round(min(_real(value, name, minimum=minimum), n + 1.0))
+
+
+def _readings(x: object, name: str) -> Array:
+    array = np.asarray(x)
+    if array.dtype.kind not in "fiu" or array.ndim != 2 or array.shape[1] != 3:
+        raise InputError(
+            f"{name}: expected an (n, 3) array of real numbers, got "
+            f"{array.dtype.name} {list(array.shape)}"
+        )
+    array = array.astype(np.float64, copy=False)
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name}: NaN or inf readings; drop those rows before still detection")
+    return array
+
+
 def _floor(stat: Array, quantile: float, resolution: float) -> float:
     # quantised sensors can show exactly zero variance in a window; the floor is at least the
     # variance of rounding to the sensor's step (step² / 12 per axis)
@@ -134,13 +175,13 @@ def detect_still(
     accel: Array,
     gyro: Array | None = None,
     *,
-    window: int = 25,
-    min_samples: int = 50,
-    trim: int | None = None,
+    window: float = 25,
+    min_samples: float = 50,
+    trim: float | None = None,
     factor: float = 3.0,
     threshold: float | None = None,
     floor_quantile: float = 0.1,
-    max_gap: int | None = None,
+    max_gap: float | None = None,
     merge_sigma: float = 5.0,
 ) -> StillResult:
     """Find the intervals in which the device rests.
@@ -169,28 +210,57 @@ def detect_still(
     merge_sigma : float
         Two intervals are one pose when their means differ by less than this many per-sample
         noise standard deviations.
+
+    Numbers of samples may be given as floats (rounded); every parameter is checked (finite,
+    in range) with a one-line :class:`~fieldcal.errors.InputError`.
     """
-    accel = np.asarray(accel, dtype=float)
-    n = len(accel)
-    window = max(3, int(window) | 1)
-    trim = window // 4 if trim is None else max(0, int(trim))
-    max_gap = window if max_gap is None else int(max_gap)
+    raw = _readings(accel, "accel")
+    n = len(raw)
+    length = _real(window, "window", minimum=1.0)
+    window = max(3, _count(length, "window", 1, n) | 1)
+    min_samples = _count(min_samples, "min_samples", 1, n)
+    trim = window // 4 if trim is None else _count(trim, "trim", 0, n)
+    max_gap = window if max_gap is None else _count(max_gap, "max_gap", 0, n)
+    factor = _real(factor, "factor", minimum=0.0, inclusive=False)
+    floor_quantile = _real(floor_quantile, "floor_quantile", minimum=0.0)
+    if floor_quantile > 1:
+        raise InputError(f"floor_quantile must be in [0, 1], got {floor_quantile!r}")
+    merge_sigma = _real(merge_sigma, "merge_sigma", minimum=0.0)
+    if threshold is not None:
+        threshold = _real(threshold, "threshold", minimum=0.0, inclusive=False)
     if n < window:
         raise InputError(
-            f"the log has {n} samples, fewer than one detection window ({window}); record longer"
+            f"the log has {n} samples, fewer than one detection window "
+            f"({max(window, length):.6g}); record longer or give a shorter window"
         )
+    # readings of order one in any unit: every statistic below is in these scaled units
+    scale = power_of_two(raw)
+    accel = raw / scale
 
-    var_a = moving_variance(accel, window)
-    floor_a = _floor(var_a, floor_quantile, _resolution(accel))
-    thr_a = factor**2 * floor_a if threshold is None else 3.0 * float(threshold) ** 2
+    with np.errstate(over="ignore", under="ignore"):  # a threshold beyond range is refused below
+        var_a = moving_variance(accel, window)
+        floor_a = _floor(var_a, floor_quantile, _resolution(accel))
+        thr_a = np.float64(factor) ** 2 * floor_a
+        if threshold is not None:
+            thr_a = 3.0 * (np.float64(threshold) / scale) ** 2
+        reported = (float(thr_a) * scale * scale, float(floor_a) * scale * scale)
+    if not (np.isfinite(thr_a) and thr_a > 0 and all(map(math.isfinite, reported))):
+        raise InputError(
+            f"the still threshold ({'factor' if threshold is None else 'threshold'}) is out of "
+            "the range floating point can hold; give a value nearer the readings' noise"
+        )
     still = var_a < thr_a
     if gyro is not None:
-        gyro = np.asarray(gyro, dtype=float)
+        rates = _readings(gyro, "gyro")
+        if len(rates) != n:
+            raise InputError(f"gyro has {len(rates)} samples but accel has {n}; pass equal rows")
+        rates = rates / power_of_two(rates)
         # the gyro's bias is its median over the samples the accelerometer calls still
-        bias = np.median(gyro[still], axis=0) if np.any(still) else np.median(gyro, axis=0)
-        energy = _moving_mean(np.sum((gyro - bias) ** 2, axis=1), window)
-        floor_g = _floor(energy, floor_quantile, _resolution(gyro))
-        still &= energy < factor**2 * floor_g
+        bias = np.median(rates[still], axis=0) if np.any(still) else np.median(rates, axis=0)
+        energy = _moving_mean(np.sum((rates - bias) ** 2, axis=1), window)
+        floor_g = _floor(energy, floor_quantile, _resolution(rates))
+        with np.errstate(over="ignore"):
+            still &= energy < np.float64(factor) ** 2 * floor_g
 
     runs = _runs(still)
     runs[:, 0] += trim
@@ -200,11 +270,13 @@ def detect_still(
     # min_samples and only the pieces that are still as a whole are kept
     runs = _split_drifting(accel, runs, thr_a, max(min_samples, window))
     groups = _merge(accel, runs, max_gap, merge_sigma * np.sqrt(floor_a / 3.0), thr_a)
-    segments = [s for s in (_segment(accel, runs[g]) for g in groups) if s.samples >= min_samples]
+    segments = [
+        s for s in (_segment(accel, runs[g], scale) for g in groups) if s.samples >= min_samples
+    ]
     return StillResult(
         segments=tuple(segments),
-        threshold=float(thr_a),
-        noise_floor=float(floor_a),
+        threshold=reported[0],
+        noise_floor=reported[1],
         window=window,
         min_samples=int(min_samples),
         trim=trim,
@@ -270,12 +342,13 @@ def _merge(
     return out
 
 
-def _segment(accel: Array, runs: NDArray[np.int64]) -> Segment:
+def _segment(accel: Array, runs: NDArray[np.int64], scale: float) -> Segment:
+    """The segment of ``runs`` in the readings' units (``accel`` is divided by ``scale``)."""
     pieces = tuple((int(a), int(b)) for a, b in runs)
     rows = np.concatenate([np.arange(a, b) for a, b in pieces])
     part = accel[rows]
-    std = float(np.sqrt(np.mean(part.var(axis=0))))
-    mean = part.mean(axis=0)
+    std = float(np.sqrt(np.mean(part.var(axis=0)))) * scale
+    mean = part.mean(axis=0) * scale
     return Segment(
         pieces[0][0],
         pieces[-1][1],

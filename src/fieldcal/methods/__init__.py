@@ -22,6 +22,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from ..stats.poses import brief
+
 if TYPE_CHECKING:
     from ..calibration import Calibration
 
@@ -130,5 +132,5 @@ METHODS: dict[str, Method] = {
 def get(name: object) -> Method:
     """The registered method called ``name``; a one-line error listing the names otherwise."""
     if not isinstance(name, str) or name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
+        raise ValueError(f"unknown method {brief(name)}; choose one of {', '.join(METHODS)}")
     return METHODS[name]

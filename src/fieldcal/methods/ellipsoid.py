@@ -53,7 +53,7 @@ from ..geometry.rotations import (
     rotation_angle_deg,
     wahba,
 )
-from ..stats.poses import PoseStats, Samples, SensorStats
+from ..stats.poses import LARGEST, PoseStats, Samples, SensorStats, as_readings, brief
 
 __all__ = [
     "MIN_POSES",
@@ -147,7 +147,7 @@ def _check_samples(
     why: str = "the ellipsoid of Eq. 8 has 9 free parameters, and one more leaves a residual "
     "for the noise",
 ) -> Array:
-    x = np.asarray(samples, dtype=float)
+    x = as_readings(samples, name)
     if x.ndim != 2 or x.shape[1] != 3:
         raise ValueError(f"{name}: expected an (n, 3) array of x, y, z readings, got {x.shape}")
     if x.shape[0] < minimum:
@@ -156,7 +156,27 @@ def _check_samples(
         )
     if not np.all(np.isfinite(x)):
         raise ValueError(f"{name}: NaN or inf readings; remove those samples before calibrating")
+    if np.any(np.abs(x) > LARGEST):
+        raise ValueError(
+            f"{name}: readings up to {float(np.abs(x).max()):.3g} are too large to square in "
+            "floating point; give them in a smaller unit"
+        )
     return x
+
+
+def _numerics(name: str, faithful: bool) -> Callable[[np.linalg.LinAlgError], ValueError]:
+    """The one-line error for a fit that numpy's linear algebra could not finish."""
+
+    def error(exc: np.linalg.LinAlgError) -> ValueError:
+        hint = (
+            "faithful=True computes on the raw numbers: give readings of order one, or use "
+            "faithful=False"
+            if faithful
+            else "record more orientations, each axis up and down"
+        )
+        return ValueError(f"{name}: the fit failed in floating point ({exc}); {hint}")
+
+    return error
 
 
 def _ellipsoid_quadric(
@@ -204,9 +224,15 @@ def fit_ellipsoid(samples: ArrayLike, *, faithful: bool = False) -> EllipsoidFit
     EllipsoidFit
         The seed's ``L`` and centre; ``correct(raw)`` applies Eq. 14.
     """
+    if not isinstance(faithful, (bool, np.bool_)):
+        raise ValueError(f"faithful must be True or False, got {brief(faithful)}")
     x = _check_samples(samples, "samples")
-    quadric, fallback = _ellipsoid_quadric(x, faithful, "samples")
-    return _ellipsoid_result(x, quadric, fallback, faithful)
+    try:
+        with np.errstate(all="ignore"):  # a failed fit shows as NaN (faithful) or an error
+            quadric, fallback = _ellipsoid_quadric(x, bool(faithful), "samples")
+            return _ellipsoid_result(x, quadric, fallback, bool(faithful))
+    except np.linalg.LinAlgError as exc:
+        raise _numerics("samples", bool(faithful))(exc) from None
 
 
 def _ellipsoid_result(x: Array, quadric: Quadric, fallback: bool, faithful: bool) -> EllipsoidFit:
@@ -407,8 +433,14 @@ def _initial_beta(inclination_deg: float | None) -> float:
     """The seed's ``β_est = cos(90° + inclination)``, or 0 when no inclination is given."""
     if inclination_deg is None:
         return 0.0
-    if not (np.isfinite(inclination_deg) and -90.0 <= inclination_deg <= 90.0):
-        raise ValueError(f"inclination_deg must be in [-90, 90], got {inclination_deg!r}")
+    if (
+        isinstance(inclination_deg, (bool, np.bool_))
+        or not isinstance(inclination_deg, (int, float, np.integer, np.floating))
+        or not (np.isfinite(inclination_deg) and -90.0 <= inclination_deg <= 90.0)
+    ):
+        raise ValueError(
+            f"inclination_deg must be a number in [-90, 90], got {brief(inclination_deg)}"
+        )
     return float(np.cos(np.radians(90.0 + inclination_deg)))
 
 
@@ -509,14 +541,21 @@ def align(
     -------
     Alignment
     """
+    if not isinstance(faithful, (bool, np.bool_)):
+        raise ValueError(f"faithful must be True or False, got {brief(faithful)}")
+    _initial_beta(inclination_deg)  # checked before any work
     faithful = bool(faithful)
     # 4 unknowns; the hardened closed-form start solves for 10 up to scale, so needs 9 pairs
     a, m = _check_pairs(accel_cal, mag_cal, 4 if faithful else 9)
     if np.any(np.linalg.norm(a, axis=1) == 0) or np.any(np.linalg.norm(m, axis=1) == 0):
         raise ValueError("zero-length calibrated vectors; calibrate both sensors first")
-    if faithful:
-        return _align_faithful(a, m, _initial_beta(inclination_deg))
-    return _align_hardened(a, m, inclination_deg)
+    try:
+        with np.errstate(all="ignore"):
+            if faithful:
+                return _align_faithful(a, m, _initial_beta(inclination_deg))
+            return _align_hardened(a, m, inclination_deg)
+    except np.linalg.LinAlgError as exc:
+        raise _numerics("align", faithful)(exc) from None
 
 
 # =========================================================================== fieldcal method
@@ -584,16 +623,16 @@ def _validate_options(
     continuous: bool,
 ) -> None:
     if not isinstance(faithful, (bool, np.bool_)):
-        raise ValueError(f"faithful must be True or False, got {faithful!r}")
+        raise ValueError(f"faithful must be True or False, got {brief(faithful)}")
     if inclination_deg is not None:
         try:
             _initial_beta(float(inclination_deg))
         except (TypeError, ValueError):
             raise ValueError(
-                f"inclination_deg must be a number in [-90, 90], got {inclination_deg!r}"
+                f"inclination_deg must be a number in [-90, 90], got {brief(inclination_deg)}"
             ) from None
     if fit_on not in ("samples", "pose_means"):
-        raise ValueError(f"fit_on must be 'samples' or 'pose_means', got {fit_on!r}")
+        raise ValueError(f"fit_on must be 'samples' or 'pose_means', got {brief(fit_on)}")
     if fit_on == "pose_means" and continuous:
         raise ValueError("fit_on='pose_means' needs per-pose input; got continuous (n, 3) arrays")
 

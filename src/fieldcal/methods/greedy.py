@@ -33,7 +33,7 @@ from ..calibration import Calibration, SensorCalibration
 from ..geometry.frames import HALF_TURN_NORTH
 from ..geometry.gauge import canonical_gauge
 from ..geometry.rotations import quaternion_to_matrix
-from ..stats.poses import PoseStats
+from ..stats.poses import PoseStats, brief
 from .gls import (
     accel_bias_field_design,
     accel_gain_design,
@@ -457,15 +457,15 @@ def _check(
             )
     for label, value in (("gamma", gamma), ("rotation_tol", rotation_tol)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise ValueError(f"{label} must be a positive number, got {value!r}")
+            raise ValueError(f"{label} must be a positive number, got {brief(value)}")
         if not np.isfinite(value):
-            raise ValueError(f"{label} must be finite, got {value!r}")
+            raise ValueError(f"{label} must be finite, got {brief(value)}")
     for label, count in (
         ("max_iterations", max_iterations),
         ("rotation_max_iterations", rotation_max),
     ):
         if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-            raise ValueError(f"{label} must be a whole number of at least 1, got {count!r}")
+            raise ValueError(f"{label} must be a whole number of at least 1, got {brief(count)}")
 
 
 def _reporter(

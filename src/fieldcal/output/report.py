@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from .._files import same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log
@@ -63,7 +64,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure as MplFigure
 
-__all__ = ["write_report"]
+__all__ = ["FIGURES", "write_report"]
 
 Array = NDArray[np.float64]
 _Scalar = TypeVar("_Scalar", bound=np.generic)
@@ -618,6 +619,8 @@ _TITLES = {
     "mag_sphere": "Magnetometer readings",
     "coverage": "Pose coverage",
 }
+#: The figures a report can hold, in page order: ``--png`` writes ``<name>.png`` for each drawn.
+FIGURES = tuple(_TITLES)
 
 
 def write_report(
@@ -636,14 +639,20 @@ def write_report(
         The HTML file to write (one self-contained page).
     png_dir : str or Path, optional
         Also write each figure there as ``<name>.png`` (``timeline``, ``residuals``,
-        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``).
+        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``: :data:`FIGURES`).
+
+    Every file is written atomically (a temporary file renamed into place), the PNGs first,
+    then the page.
 
     Raises
     ------
     InputError
-        matplotlib is missing, the log has none of the calibrated sensors, or it is shorter
-        than the calibration's poses (not the log the calibration was made from).
+        matplotlib is missing, the log has none of the calibrated sensors, it is shorter than
+        the calibration's poses (not the log the calibration was made from), or ``output`` is
+        the log itself.
     """
+    if same_file(output, log.path):
+        raise InputError(f"{output}: is the input log {log.path}; write the report to another file")
     Figure = _figure_class()
     rng = np.random.default_rng(0)
     poses = _poses(cal, log)
@@ -698,7 +707,7 @@ def write_report(
         buffer = _io.BytesIO()
         fig.savefig(buffer, format="png", dpi=_DPI)
         if png_dir is not None:
-            (Path(png_dir) / f"{key}.png").write_bytes(buffer.getvalue())
+            write_bytes(Path(png_dir) / f"{key}.png", buffer.getvalue())
         encoded = base64.b64encode(buffer.getvalue()).decode("ascii")
         section = (
             f"<h2>{_TITLES[key]}</h2><p class='caption'>{_CAPTIONS[key]}</p>"
@@ -720,4 +729,4 @@ def write_report(
         f"{_banner_html(cal)}{_summary_html(cal, log, poses)}{_correction_html(cal)}"
         f"{_uncertainty_html(cal)}{''.join(sections)}</body></html>"
     )
-    Path(output).write_text(page, encoding="utf-8")
+    write_text(output, page)

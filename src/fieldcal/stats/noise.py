@@ -16,6 +16,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from .poses import as_readings, brief
+
 __all__ = ["noise_covariance", "per_sensor", "pose_noise_value", "wishart_std"]
 
 Array = NDArray[np.float64]
@@ -33,25 +35,28 @@ def per_sensor(value: object, what: str) -> dict[str, object]:
 
 def _finite_positive(array: Array, name: str, value: object) -> None:
     if array.dtype.kind not in "fiu" or not np.all(np.isfinite(array)) or not np.all(array > 0):
-        raise ValueError(f"noise for {name} must be finite and positive, got {value!r}")
+        raise ValueError(f"noise for {name} must be finite and positive, got {brief(value)}")
 
 
 def noise_covariance(value: object, name: str) -> Array:
     """A user's per-sample noise: a standard deviation (scalar or per axis) or a 3x3 covariance."""
-    if isinstance(value, (str, bytes, bool)):
-        raise ValueError(f"noise for {name} must be a number or an array, got {value!r}")
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ValueError(f"noise for {name} must be a number or an array, got {brief(value)}")
     try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"noise for {name} must be a number or an array, got {value!r}") from None
+        array = as_readings(value, f"noise for {name}")
+    except ValueError:
+        raise ValueError(
+            f"noise for {name} must be a number or an array of real numbers, got {brief(value)}"
+        ) from None
     if array.ndim == 0 or array.shape == (3,):
         _finite_positive(array, name, value)
         with np.errstate(over="ignore", invalid="ignore"):  # caught below, with its reason
             cov = np.eye(3) * np.square(array) if array.ndim == 0 else np.diag(np.square(array))
-        if not np.all(np.isfinite(cov)):
+        if not (np.all(np.isfinite(cov)) and np.all(np.diag(cov) > 0)):
+            size = "large" if np.any(array > 1) else "small"
             raise ValueError(
-                f"noise for {name} is too large to square ({value!r}); give it in the readings' "
-                "own units"
+                f"noise for {name} is too {size} to square in floating point ({brief(value)}); "
+                "give it in the readings' own units"
             )
         return cov
     if array.shape != (3, 3):
@@ -77,17 +82,19 @@ def pose_noise_value(value: object, name: str) -> float | None:
     if isinstance(value, (str, bytes, bool)):
         raise ValueError(
             f"pose_noise for {name} must be 'auto', 'none' or a standard deviation in raw "
-            f"units, got {value!r}"
+            f"units, got {brief(value)}"
         )
     try:
         std = float(value)  # type: ignore[arg-type]  # float() itself is the check
     except (TypeError, ValueError):
         raise ValueError(
             f"pose_noise for {name} must be 'auto', 'none' or a standard deviation in raw "
-            f"units, got {value!r}"
+            f"units, got {brief(value)}"
         ) from None
     if not (np.isfinite(std) and std >= 0):
-        raise ValueError(f"pose_noise for {name} must be finite and not negative, got {value!r}")
+        raise ValueError(
+            f"pose_noise for {name} must be finite and not negative, got {brief(value)}"
+        )
     return std * std
 
 

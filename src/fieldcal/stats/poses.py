@@ -18,16 +18,22 @@ from .._frozen import ArrayDataclass
 from .trimming import trim_unsteady
 
 __all__ = [
+    "LARGEST",
     "PoseStats",
     "Samples",
     "SensorStats",
     "as_pose_list",
+    "as_readings",
+    "brief",
     "check_spread",
     "stats_from_means",
     "summarize",
 ]
 
 Array = NDArray[np.float64]
+
+#: Largest reading accepted: its square (a covariance entry, Eq. 7) must stay a finite float64.
+LARGEST = 1e150
 
 #: One sensor's raw input as a user gives it: N per-pose (n_i, 3) arrays (any sequence of
 #: array-likes) or an (N, n, 3) array; methods that take continuous input also accept one
@@ -129,6 +135,58 @@ class PoseStats(ArrayDataclass):
         )
 
 
+def brief(value: object, limit: int = 60) -> str:
+    """``repr(value)`` on one line and at most ``limit`` characters, for error messages (an
+    array's repr spans lines)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: dtype kinds that are not readings, and what to call them.
+_NOT_READINGS = {
+    "b": "true/false values",
+    "c": "complex numbers (pass the real part if the imaginary parts are zero)",
+    "U": "text",
+    "S": "bytes",
+    "M": "dates",
+    "m": "time spans",
+    "V": "records",
+}
+
+
+def as_readings(value: object, what: str) -> Array:
+    """``value`` as a float array, refusing what is not real numbers in one line.
+
+    Complex numbers are refused (their imaginary parts would be dropped silently), and so
+    are booleans, text, dates, masked entries and objects that are not numbers; ``what``
+    names the value in the message (e.g. ``"accel: pose 3"``).
+    """
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{what} is text, not numeric readings ({brief(value, 30)})")
+    if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):
+        raise ValueError(f"{what} has masked entries; drop those samples first")
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{what} is not an array of numbers (rows of different lengths?)"
+        ) from None
+    kind = array.dtype.kind
+    if kind in _NOT_READINGS:
+        raise ValueError(f"{what} holds {_NOT_READINGS[kind]}, not numeric readings")
+    if kind == "O":
+        items = array.ravel().tolist()
+        if not all(
+            isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+            for v in items
+        ):
+            raise ValueError(f"{what} is not numeric: it holds Python objects that are not numbers")
+    try:
+        return np.asarray(array, dtype=np.float64)
+    except OverflowError:  # Python integers beyond the float range
+        raise ValueError(f"{what} has numbers too large for floating point") from None
+
+
 def as_pose_list(samples: object, name: str) -> list[Array]:
     """Validate one sensor's input: N arrays of shape (n_i, 3), or an (N, n, 3) array.
 
@@ -156,10 +214,7 @@ def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[
         raise ValueError(f"{name}: no poses given; pass one (n_i, 3) array per static pose")
     out = []
     for i, pose in enumerate(poses):
-        try:
-            array = np.asarray(pose, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name}: pose {i} is not numeric") from None
+        array = as_readings(pose, f"{name}: pose {i}")
         if array.ndim == 1 and array.shape == (3,):
             array = array[None, :]
         if array.ndim != 2 or array.shape[1] != 3:
@@ -173,6 +228,7 @@ def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[
     stacked = np.concatenate(out, axis=0)
     counts = np.array([len(a) for a in out], dtype=np.int64)
     _check_finite(stacked, counts, name)
+    _check_range(stacked, counts, name)
     return out, stacked, counts
 
 
@@ -187,6 +243,21 @@ def _check_finite(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
     raise ValueError(
         f"{name}: NaN or inf readings in {len(bad)} pose(s) ({shown}); "
         "remove those samples before calibrating"
+    )
+
+
+def _check_range(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
+    """Readings whose squares overflow are refused, naming the pose, sample and axis."""
+    if stacked.size == 0 or float(np.max(np.abs(stacked))) <= LARGEST:
+        return
+    row, axis = np.unravel_index(int(np.argmax(np.abs(stacked))), stacked.shape)
+    ends = np.cumsum(counts)
+    pose = int(np.searchsorted(ends, row, side="right"))
+    sample = int(row - (ends[pose - 1] if pose else 0))
+    raise ValueError(
+        f"{name}: readings up to {float(np.abs(stacked[row, axis])):.3g} (pose {pose}, sample "
+        f"{sample}, axis {'xyz'[axis]}) are too large to square in floating point; give them in "
+        "a smaller unit (e.g. divide by a power of ten) and scale the gain back"
     )
 
 
@@ -240,6 +311,8 @@ def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseS
     """
     if accel is None and mag is None:
         raise ValueError("no data: pass accelerometer poses, magnetometer poses, or both")
+    if not isinstance(trim, (bool, np.bool_)):
+        raise ValueError(f"trim must be True or False, got {trim!r}")
     a = None if accel is None else _validated(accel, "accel")
     m = None if mag is None else _validated(mag, "mag")
     if a is not None and m is not None and len(a[2]) != len(m[2]):
@@ -267,11 +340,13 @@ def stats_from_means(
     def one(means: ArrayLike | None, cov: ArrayLike | None, name: str) -> SensorStats | None:
         if means is None:
             return None
-        m = as_pose_list([np.asarray(means, dtype=float)], name)[0]
-        n = np.ones(len(m), dtype=np.int64) if counts is None else np.asarray(counts, np.int64)
-        if n.shape != (len(m),):
-            raise ValueError(f"{name}: counts has {n.shape[0]} entries for {len(m)} poses")
-        c = None if cov is None else np.asarray(cov, dtype=float)
+        m = as_pose_list([as_readings(means, f"{name} means")], name)[0]
+        n = np.ones(len(m), dtype=np.int64) if counts is None else _counts(counts, len(m), name)
+        c = None
+        if cov is not None:
+            c = as_readings(cov, f"{name} covariance")
+            if c.shape != (3, 3) or not np.all(np.isfinite(c)):
+                raise ValueError(f"{name}: the covariance must be a finite 3x3 array")
         return SensorStats(m, n, c, int(n.sum() - len(n)))
 
     stats = PoseStats(one(accel_means, accel_cov, "accel"), one(mag_means, mag_cov, "mag"))
@@ -282,6 +357,16 @@ def stats_from_means(
             "pass the same poses for both sensors"
         )
     return stats
+
+
+def _counts(counts: object, n_poses: int, name: str) -> NDArray[np.int64]:
+    """Samples per pose: whole numbers of at least 1, one per pose."""
+    values = as_readings(counts, f"{name}: counts")
+    if values.shape != (n_poses,):
+        raise ValueError(f"{name}: counts has shape {values.shape} for {n_poses} poses")
+    if not (np.all(np.isfinite(values)) and np.all(values >= 1) and np.all(values % 1 == 0)):
+        raise ValueError(f"{name}: counts must be whole numbers of at least 1 (samples per pose)")
+    return values.astype(np.int64)
 
 
 #: Smallest singular value of the centred pose means, relative to the largest, below which the

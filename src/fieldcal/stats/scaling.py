@@ -14,25 +14,32 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from .poses import Samples, as_pose_list
+from .poses import LARGEST, Samples, as_pose_list, as_readings
 
 __all__ = ["LARGEST", "normalise"]
 
 Array = NDArray[np.float64]
 
-#: Largest reading whose square (a covariance entry) is still a finite float64.
-LARGEST = 1e150
 
-
-def _scale_of(largest: float, name: str) -> float:
+def _scale_of(largest: float, name: str, where: str = "") -> float:
     if not largest > 0 or not math.isfinite(largest):
         return 1.0  # all zero, or non-finite: the input checks say what is wrong
     if largest > LARGEST:
         raise ValueError(
-            f"{name}: readings up to {largest:.3g} are too large to square in floating point; "
-            "give them in a smaller unit (e.g. divide by a power of ten) and scale the gain back"
+            f"{name}: readings up to {largest:.3g}{where} are too large to square in floating "
+            "point; give them in a smaller unit (e.g. divide by a power of ten) and scale the "
+            "gain back"
         )
     return float(2.0 ** round(math.log2(largest)))
+
+
+def _largest(x: Array) -> tuple[float, str]:
+    """The largest finite ``|x|`` of an (n, 3) array and where it is (sample, axis)."""
+    magnitude = np.where(np.isfinite(x), np.abs(x), 0.0)
+    if magnitude.size == 0:
+        return 0.0, ""
+    i, j = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
+    return float(magnitude[i, j]), f" (sample {i}, axis {'xyz'[j]})"
 
 
 def normalise(samples: Samples | None, name: str) -> tuple[Samples | None, float]:
@@ -43,14 +50,13 @@ def normalise(samples: Samples | None, name: str) -> tuple[Samples | None, float
     if samples is None:
         return None, 1.0
     if isinstance(samples, np.ndarray) and samples.ndim == 2:
-        array = np.asarray(samples)
-        if array.dtype.kind not in "biuf":
-            return samples, 1.0  # the method's own check names the problem
-        x = np.asarray(array, dtype=float)
-        finite = np.abs(x[np.isfinite(x)])
-        scale = _scale_of(float(finite.max()) if finite.size else 0.0, name)
+        x = as_readings(samples, name)
+        if x.shape[1:] != (3,):
+            return x, 1.0  # the method's own check names the problem
+        largest, where = _largest(x)
+        scale = _scale_of(largest, name, where)
         return x / scale, scale
-    poses = as_pose_list(samples, name)
-    largest = max((float(np.abs(p[np.isfinite(p)]).max(initial=0.0)) for p in poses), default=0.0)
+    poses = as_pose_list(samples, name)  # also refuses readings beyond LARGEST
+    largest = max((_largest(p)[0] for p in poses), default=0.0)
     scale = _scale_of(largest, name)
     return ([p / scale for p in poses] if scale != 1.0 else poses), scale

@@ -20,7 +20,7 @@ from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
-from ...stats.poses import PoseStats, check_spread
+from ...stats.poses import PoseStats, brief, check_spread
 from .lm import Result, levenberg_marquardt
 from .model import Problem, State, build_problem, field
 from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
@@ -112,11 +112,11 @@ def fit(
         records the starts tried. Uncertainty and certificate are added by the shared path.
     """
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ValueError(f"max_iter must be a whole number of at least 1, got {max_iter!r}")
+        raise ValueError(f"max_iter must be a whole number of at least 1, got {brief(max_iter)}")
     if isinstance(tol, bool) or not (
         isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0
     ):
-        raise ValueError(f"tol must be a positive finite number, got {tol!r}")
+        raise ValueError(f"tol must be a positive finite number, got {brief(tol)}")
     if initial is not None and not isinstance(initial, Calibration):
         raise ValueError(
             f"initial must be a fieldcal.Calibration (e.g. Calibration.from_json(text)), "

@@ -38,7 +38,7 @@ def c_float(x: float) -> str:
     """
     if not np.isfinite(x) or abs(x) > float(_FLOAT32.max):
         raise ValueError(
-            f"the c-header export cannot write {x!r}: a C float holds at most "
+            f"the c-header export cannot write {float(x)!r}: a C float holds at most "
             f"{float(_FLOAT32.max):.9g}; export in another format (matlab, magneto, json)"
         )
     f = np.float32(x)

@@ -28,13 +28,37 @@ def corrections(cal: Calibration) -> list[tuple[str, Array, Array]]:
     -------
     list of (str, (3, 3) array, (3,) array)
         The correction ``v = inv(gain) @ (raw − bias)`` of each sensor the result has.
+
+    Raises
+    ------
+    ValueError
+        A gain or bias that is not finite, a singular gain, or a correction that overflows:
+        no target can represent it, so every export refuses it in one line.
     """
     out: list[tuple[str, Array, Array]] = []
     for name in SENSORS:
         sensor: SensorCalibration | None = getattr(cal, name)
-        if sensor is not None:
-            inverse = cast(Array, np.linalg.inv(sensor.gain))
-            out.append((name, inverse, np.asarray(sensor.bias, dtype=float)))
+        if sensor is None:
+            continue
+        gain = np.asarray(sensor.gain, dtype=float)
+        bias = np.asarray(sensor.bias, dtype=float)
+        what = f"cannot export: the {NAMES[name]}'s"
+        if not (np.isfinite(gain).all() and np.isfinite(bias).all()):
+            raise ValueError(
+                f"{what} gain or bias is not finite (NaN or infinity); calibrate again"
+            )
+        try:
+            inverse = cast(Array, np.linalg.inv(gain))
+        except np.linalg.LinAlgError:
+            raise ValueError(
+                f"{what} gain is singular, so there is no correction inv(gain); calibrate again"
+            ) from None
+        if not np.isfinite(inverse).all():
+            raise ValueError(
+                f"{what} correction inv(gain) overflows a double (the gain is nearly singular); "
+                "calibrate again"
+            )
+        out.append((name, inverse, bias))
     return out
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ...calibration import CONVENTIONS, Calibration
+from .common import corrections
 
 __all__ = ["CONTENT", "FORMULA", "write"]
 
@@ -22,5 +23,11 @@ def write(cal: Calibration) -> str:
     -------
     str
         :meth:`Calibration.to_json` with a final newline.
+
+    Raises
+    ------
+    ValueError
+        A gain or bias that is not finite or a singular gain (as every export).
     """
+    corrections(cal)  # the same refusal as every other format: a correction must exist
     return cal.to_json() + "\n"
