@@ -133,22 +133,11 @@ def document():
     return json.loads(fieldcal.calibrate(s.accel, s.mag).to_json())
 
 
-def _paths(node, prefix=()):
-    out = [prefix]
-    if isinstance(node, dict):
-        for k, v in node.items():
-            out += _paths(v, (*prefix, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out += _paths(v, (*prefix, i))
-    return out
-
-
 @settings(max_examples=200)
 @given(st.data())
 def test_any_change_to_a_calibration_file_reads_or_is_one_line(document, data):
     doc = json.loads(json.dumps(document))
-    paths = _paths(doc)[1:]
+    paths = fuzz._paths(doc)[1:]
     path = paths[data.draw(st.integers(0, len(paths) - 1))]
     node = doc
     for key in path[:-1]:

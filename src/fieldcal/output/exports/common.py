@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from ...calibration import SENSORS, Calibration, SensorCalibration
 
-__all__ = ["NAMES", "corrections", "exact", "provenance"]
+__all__ = ["NAMES", "comment_header", "corrections", "exact", "provenance"]
 
 Array = NDArray[np.float64]
 
@@ -68,6 +68,13 @@ def exact(x: float) -> str:
     Always has a decimal point or an exponent, so no target reads it as an integer.
     """
     return repr(float(x))
+
+
+def comment_header(cal: Calibration, marker: str) -> list[str]:
+    """The title and :func:`provenance` lines as comments starting with ``marker``."""
+    return [
+        f"{marker} {text}" for text in ["Sensor calibration written by fieldcal.", *provenance(cal)]
+    ]
 
 
 def provenance(cal: Calibration) -> list[str]:

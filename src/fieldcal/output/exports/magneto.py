@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ...calibration import Calibration
-from .common import NAMES, corrections, exact, provenance
+from .common import NAMES, comment_header, corrections, exact
 
 __all__ = ["CONTENT", "FORMULA", "write"]
 
@@ -27,7 +27,7 @@ def write(cal: Calibration) -> str:
     str
         The text; numbers are exact doubles.
     """
-    lines = [f"# {text}" for text in ["Sensor calibration written by fieldcal.", *provenance(cal)]]
+    lines = comment_header(cal, "#")
     lines.append(f"# Magneto convention: {FORMULA}, h a column vector.")
     for name, M, b in corrections(cal):
         lines += [

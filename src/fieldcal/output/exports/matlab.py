@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...calibration import Calibration
-from .common import NAMES, corrections, exact, provenance
+from .common import NAMES, comment_header, corrections, exact
 
 __all__ = ["CONTENT", "FORMULA", "write"]
 
@@ -31,7 +31,7 @@ def write(cal: Calibration) -> str:
     str
         The script; numbers are exact doubles.
     """
-    lines = [f"% {text}" for text in ["Sensor calibration written by fieldcal.", *provenance(cal)]]
+    lines = comment_header(cal, "%")
     lines += [
         f"% Convention of MATLAB's magcal: {FORMULA}",
         "% where D is N-by-3 (one raw reading per row), b is 1-by-3 and A is 3-by-3:",
