@@ -575,7 +575,7 @@ def test_interrupted_calibrate_and_simulate(files, tmp_path, monkeypatch):
 
     old = tmp_path / "cal.json"
     old.write_text("{}\n")
-    _interrupt_on(monkeypatch, fieldcal.pipeline, "calibrate_log")
+    _interrupt_on(monkeypatch, fieldcal.pipeline, "run_log")
     result = run("calibrate", files["session"], "-o", old, "--force", ok=False)
     assert (result.exit_code, result.stderr) == (130, "Interrupted; nothing was written\n")
     assert old.read_text() == "{}\n"
@@ -651,7 +651,7 @@ def test_unexpected_errors_are_one_line_bugs(files, monkeypatch):
     def broken(*args, **kwargs):
         raise KeyError("oops")
 
-    monkeypatch.setattr(fieldcal.pipeline, "calibrate_log", broken)
+    monkeypatch.setattr(fieldcal.pipeline, "run_log", broken)
     result = run("calibrate", files["session"], "--json", ok=False)
     assert result.exit_code == 1
     lines = result.stderr.strip().splitlines()
@@ -668,7 +668,7 @@ def test_runtime_warnings_never_reach_the_terminal(files, tmp_path, monkeypatch)
 
     import fieldcal.pipeline
 
-    real = fieldcal.pipeline.calibrate_log
+    real = fieldcal.pipeline.run_log
 
     def noisy(*args, **kwargs):
         with np.errstate(all="warn"):
@@ -676,7 +676,7 @@ def test_runtime_warnings_never_reach_the_terminal(files, tmp_path, monkeypatch)
         warnings.warn("a note meant for the user", UserWarning, stacklevel=1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(fieldcal.pipeline, "calibrate_log", noisy)
+    monkeypatch.setattr(fieldcal.pipeline, "run_log", noisy)
     result = run("calibrate", files["session"], "-o", tmp_path / "c.json")
     assert "divide by zero" not in result.output and "RuntimeWarning" not in result.output
     assert "warning: a note meant for the user" in result.stdout

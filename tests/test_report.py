@@ -44,7 +44,7 @@ def made(tmp_path_factory):
     log = load_log(folder / "session.csv")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cal = calibrate_log(log, poses_from_log(log))
+        cal = calibrate_log(log, poses=poses_from_log(log))
     output = folder / "report.html"
     write_report(cal, log, output, png_dir=folder / "png")
     return {"cal": cal, "log": log, "folder": folder, "page": output.read_text(encoding="utf-8")}

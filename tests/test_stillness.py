@@ -112,3 +112,30 @@ def test_icm20948_pose_count(shared_data, session, low, high):
     rate = 27.0  # no timestamps: the loop sleeps 30 ms per sample
     result = detect_still(log.accel, log.gyro, window=15, min_samples=int(0.5 * rate))
     assert low <= len(result.segments) <= high
+
+
+@pytest.mark.parametrize(("n", "window"), [(200, 11), (30, 51), (7, 3), (52, 51), (51, 51)])
+def test_moving_variance_every_row_against_direct(n, window):
+    """Every row, including those whose window the log's ends truncate (the middle rows come
+    from slices of the cumulative sums, the ends from gathered indices)."""
+    x = np.random.default_rng(n).normal(size=(n, 3)) * [1, 2, 3] + 5.0
+    half = window // 2
+    direct = [x[max(0, i - half) : i + half + 1].var(axis=0).sum() for i in range(n)]
+    np.testing.assert_allclose(moving_variance(x, window), direct, rtol=1e-9, atol=1e-12)
+
+
+def test_moving_variance_and_detection_respect_segments():
+    """A segment's windows stop at its boundary, as they stop at the log's ends; no still
+    interval spans a boundary, though the readings on both sides agree."""
+    rng = np.random.default_rng(8)
+    x = rng.normal(scale=0.01, size=(1000, 3)) + np.array([0.0, 0.0, 1.0])
+    segment = (np.arange(1000) >= 400).astype(np.int64)
+    got = moving_variance(x, 25, segment)
+    np.testing.assert_allclose(got[:400], moving_variance(x[:400], 25), rtol=1e-9)
+    np.testing.assert_allclose(got[400:], moving_variance(x[400:], 25), rtol=1e-9)
+    assert len(detect_still(x, window=25, min_samples=50).segments) == 1
+    split = detect_still(x, window=25, min_samples=50, segment=segment).segments
+    assert [(s.start <= 400, s.stop <= 400) for s in split] == [(True, True), (False, False)]
+    assert split[0].stop == 400 - 6 and split[1].start == 400 + 6  # trimmed at the boundary
+    with pytest.raises(InputError, match="one whole number per sample"):
+        detect_still(x, window=25, segment=np.zeros(999, dtype=int))

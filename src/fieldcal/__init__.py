@@ -3,6 +3,7 @@
 >>> import fieldcal
 >>> session = fieldcal.simulate("paper", seed=1)
 >>> cal = fieldcal.calibrate(session.accel, session.mag)          # doctest: +SKIP
+>>> cal = fieldcal.calibrate_log("log.csv")                        # doctest: +SKIP
 
 Conventions are stated once in :mod:`fieldcal.geometry.frames` and ``docs/conventions.md``;
 the rooms of the package are described in ``docs/architecture.md``. Importing fieldcal loads
@@ -31,7 +32,9 @@ from .simulation.session import Session, simulate
 from .stats.poses import PoseStats, SensorStats, stats_from_means, summarize
 
 if TYPE_CHECKING:
+    from .logs import Log
     from .methods.ellipsoid import align, fit_ellipsoid
+    from .pipeline import calibrate_log, read_log
 
 __all__ = [
     "METHODS",
@@ -39,6 +42,7 @@ __all__ = [
     "Calibration",
     "Diagnostics",
     "InputError",
+    "Log",
     "ParameterCovariance",
     "PoseStats",
     "RejectedPose",
@@ -49,15 +53,24 @@ __all__ = [
     "__version__",
     "align",
     "calibrate",
+    "calibrate_log",
     "fit_ellipsoid",
     "metrics",
+    "read_log",
     "simulate",
     "stats_from_means",
     "summarize",
 ]
 
-#: Public names whose modules need SciPy: imported on first use, keeping ``import fieldcal`` light.
-_LAZY = {"align": "fieldcal.methods.ellipsoid", "fit_ellipsoid": "fieldcal.methods.ellipsoid"}
+#: Public names imported on first use, keeping ``import fieldcal`` light.
+_LAZY = {
+    "align": "fieldcal.methods.ellipsoid",
+    "fit_ellipsoid": "fieldcal.methods.ellipsoid",
+    # the log path: commands that never read a log (--version, --help, export) skip it
+    "Log": "fieldcal.logs",
+    "calibrate_log": "fieldcal.pipeline",
+    "read_log": "fieldcal.pipeline",
+}
 
 
 def __getattr__(name: str) -> object:

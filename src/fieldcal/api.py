@@ -21,7 +21,7 @@ from .calibration import Calibration
 from .methods import Method
 from .methods import get as get_method
 from .stats.noise import noise_covariance, per_sensor, pose_noise_value
-from .stats.poses import PoseStats, Samples, brief, summarize
+from .stats.poses import PoseStats, Samples, brief, summarize_scaled
 from .stats.scaling import normalise
 
 if TYPE_CHECKING:
@@ -200,24 +200,19 @@ def calibrate(
         "trim": bool(trim),
     }
 
-    # every reading divided by an exact power of two: the fit sees numbers of order one in any
-    # unit, and the result is scaled back at the end
-    accel, accel_scale = normalise(accel, "accel")
-    mag, mag_scale = normalise(mag, "mag")
-    scales = {"accel": accel_scale, "mag": mag_scale}
     try:
         # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds
         # contention, and two processes calibrating at once made a 5 ms fit take 0.7 s.
         # Floating-point trouble is not printed: the result is checked below and refused in
         # one line when anything a correction uses is not finite.
         with _blas().limit(limits=1), np.errstate(all="ignore"):
-            cal = _fit(
-                spec, accel, mag, scales, options, user_noise, fixed, body_frame,
+            cal, scales = _fit(
+                spec, accel, mag, options, user_noise, fixed, body_frame,
                 trim=bool(trim), robust=bool(robust), alpha=alpha,
                 mag_mirrored=bool(mag_mirrored), on_progress=on_progress,
             )  # fmt: skip
-            cal = cal.with_raw_scale(scales)
-            cal = dataclasses.replace(cal, options={**cal.options, **provenance})
+            # back to the user's units with the provenance (one new Calibration, not two)
+            cal = cal.with_raw_scale(scales, options=provenance)
             cal = cal.with_mag_handedness(bool(mag_mirrored))
             if g is not None or h is not None:
                 cal = cal.with_field_magnitudes(g, h)
@@ -241,7 +236,6 @@ def _fit(
     spec: Method,
     accel: Samples | None,
     mag: Samples | None,
-    scales: Mapping[str, float],
     options: Mapping[str, object],
     user_noise: Mapping[str, np.ndarray],
     fixed: Mapping[str, float | None],
@@ -252,9 +246,13 @@ def _fit(
     alpha: float,
     mag_mirrored: bool,
     on_progress: Callable[[str], None] | None,
-) -> Calibration:
-    """The method through the shared trust path, on readings divided by ``scales``."""
+) -> tuple[Calibration, dict[str, float]]:
+    """The method through the shared trust path, on readings divided by an exact power of two
+    per sensor (the fit sees numbers of order one in any unit); returns the result and those
+    divisors, by which :meth:`Calibration.with_raw_scale` scales it back."""
     if _continuous(accel, mag):
+        accel, accel_scale = normalise(accel, "accel")
+        mag, mag_scale = normalise(mag, "mag")
         if not spec.continuous:
             raise ValueError(
                 f"method {spec.name!r} needs per-pose input: pass a list with one (n_i, 3) "
@@ -266,32 +264,38 @@ def _fit(
                 "estimates the noise from its fit residuals (pass per-pose arrays instead)"
             )
         cal = spec.load()(None, raw_accel=accel, raw_mag=mag, body_frame=body_frame, **options)
-    else:
-        stats = summarize(accel, mag, trim=trim)
-        need = spec.min_poses_for(len(stats.sensors))
-        if stats.n_poses < need:
-            raise ValueError(
-                f"{stats.n_poses} poses given; the {spec.name} method needs at least {need}"
-                + (
-                    " (6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
-                    if len(stats.sensors) == 2
-                    else " for one sensor (3N readings must outnumber 2N tilt angles plus "
-                    "9 sensor parameters)"
-                )
+        return cal, {"accel": accel_scale, "mag": mag_scale}
+    # one pass over the samples: checks, the divisors and Eq. 5/7 (the statistics are scaled,
+    # not the samples; a method that reads the samples gets scaled copies)
+    stats, scales, arrays = summarize_scaled(accel, mag, trim=trim)
+    raw: dict[str, list[np.ndarray] | None] = {"accel": None, "mag": None}
+    if spec.raw_samples:
+        for s, poses in arrays.items():
+            raw[s] = poses if poses is None or scales[s] == 1.0 else [p / scales[s] for p in poses]
+    need = spec.min_poses_for(len(stats.sensors))
+    if stats.n_poses < need:
+        raise ValueError(
+            f"{stats.n_poses} poses given; the {spec.name} method needs at least {need}"
+            + (
+                " (6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
+                if len(stats.sensors) == 2
+                else " for one sensor (3N readings must outnumber 2N tilt angles plus "
+                "9 sensor parameters)"
             )
-        stats, sources = _with_user_noise(stats, user_noise, scales)
-        cal = _trust().fit_trusted(
-            spec,
-            stats,
-            raw_accel=accel,
-            raw_mag=mag,
-            body_frame=body_frame,
-            options=options,
-            sources=sources,
-            pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
-            robust=robust,
-            alpha=alpha,
-            mag_mirrored=mag_mirrored,
-            on_progress=on_progress,
         )
-    return cal
+    stats, sources = _with_user_noise(stats, user_noise, scales)
+    cal = _trust().fit_trusted(
+        spec,
+        stats,
+        raw_accel=raw["accel"],
+        raw_mag=raw["mag"],
+        body_frame=body_frame,
+        options=options,
+        sources=sources,
+        pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
+        robust=robust,
+        alpha=alpha,
+        mag_mirrored=mag_mirrored,
+        on_progress=on_progress,
+    )
+    return cal, scales

@@ -83,9 +83,17 @@ class ParameterCovariance(ArrayDataclass):
     def index(self, name: str) -> int:
         """Position of parameter ``name``; ``KeyError`` listing the known names."""
         try:
-            return self.names.index(name)
-        except ValueError:
+            return self._positions[name]
+        except KeyError:
             raise KeyError(f"no parameter named {name!r}; known: {', '.join(self.names)}") from None
+
+    @functools.cached_property
+    def _positions(self) -> dict[str, int]:
+        """Name to position (the first, should a name repeat, as ``tuple.index`` gives)."""
+        positions: dict[str, int] = {}
+        for i, name in enumerate(self.names):
+            positions.setdefault(name, i)
+        return positions
 
     def std(self, name: str) -> float:
         """Standard error of one named parameter."""
@@ -110,6 +118,13 @@ class ParameterCovariance(ArrayDataclass):
     def transformed(self, T: Array) -> ParameterCovariance:
         """The covariance of ``T @ parameters`` (same names)."""
         return ParameterCovariance(self.names, T @ self.matrix @ T.T)
+
+    @functools.cached_property
+    def sensor_blocks(self) -> dict[str, ParameterCovariance | None]:
+        """Each sensor's gain and bias block, names without the sensor prefix (``None`` for a
+        sensor with no parameters here); computed once per covariance, shared by every
+        :class:`Calibration` that holds it."""
+        return {name: _sensor_block(self, name) for name in SENSORS}
 
 
 def _gain_names(sensor: str) -> list[str]:
@@ -371,11 +386,12 @@ class Calibration(ArrayDataclass):
         object.__setattr__(self, "rejected", tuple(self.rejected))
         object.__setattr__(self, "iterations", int(self.iterations))
         object.__setattr__(self, "converged", bool(self.converged))
-        for name in ("accel", "mag"):  # each sensor sees its block of the one covariance
+        blocks = None if self.covariance is None else self.covariance.sensor_blocks
+        for name in SENSORS:  # each sensor sees its block of the one covariance
             sensor = getattr(self, name)
             if sensor is not None:
-                block = _sensor_block(self.covariance, name)
-                if block != sensor.covariance:
+                block = None if blocks is None else blocks[name]
+                if block is not sensor.covariance and block != sensor.covariance:
                     object.__setattr__(self, name, dataclasses.replace(sensor, covariance=block))
         if not self.version:
             object.__setattr__(self, "version", __version__)
@@ -537,17 +553,28 @@ class Calibration(ArrayDataclass):
             self, accel=accel, mag=mag, gravity=g, magnetic=h, covariance=covariance, units={}
         )
 
-    def with_raw_scale(self, scales: Mapping[str, float]) -> Calibration:
+    def with_raw_scale(
+        self, scales: Mapping[str, float], *, options: Mapping[str, Any] | None = None
+    ) -> Calibration:
         """The same calibration for raw readings multiplied by ``scales[sensor]``.
 
         Gains, biases and pose-level noise scale by the factor, noise covariances by its square,
         and so do their covariance entries and the pose residuals; angles, the verdict and the
         relative accuracy do not change. :func:`fieldcal.calibrate` fits readings divided by a
-        power of two and calls this to express the result in the user's units.
+        power of two and calls this to express the result in the user's units. ``options``,
+        when given, are merged into :attr:`options` in the same step.
         """
         changes: dict[str, object] = {}
-        factors: dict[str, float] = {}
-        rows = [dict(p) for p in self.poses]
+        factors = {
+            f"{name}.{part}": c
+            for name, c in scales.items()
+            if getattr(self, name) is not None and c != 1.0
+            for part in ("gain", "bias")
+        }
+        covariance = None
+        if factors and self.covariance is not None:
+            covariance = changes["covariance"] = self.covariance.scaled(factors)
+        rows = None
         for name, c in scales.items():
             sensor = getattr(self, name)
             if sensor is None or c == 1.0:
@@ -564,16 +591,20 @@ class Calibration(ArrayDataclass):
                 pose_noise_std_se=None
                 if sensor.pose_noise_std_se is None
                 else sensor.pose_noise_std_se * c,
+                # the block the result will hold (attached here, not by a second replace)
+                covariance=None if covariance is None else covariance.sensor_blocks[name],
             )
-            factors[f"{name}.gain"] = factors[f"{name}.bias"] = c
+            rows = [dict(p) for p in self.poses] if rows is None else rows
             for row in rows:
                 if f"{name}_residual" in row:
                     row[f"{name}_residual"] = [float(x) * c for x in row[f"{name}_residual"]]
+        if rows is not None:
+            changes["poses"] = tuple(rows)
+        if options is not None:
+            changes["options"] = {**self.options, **options}
         if not changes:
             return self
-        if self.covariance is not None:
-            changes["covariance"] = self.covariance.scaled(factors)
-        return dataclasses.replace(self, poses=tuple(rows), **changes)  # type: ignore[arg-type]
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
         """The twin of this result whose magnetometer has the requested handedness.
@@ -720,16 +751,21 @@ CONVENTIONS = {
 }
 
 
+#: Each sensor's gain and bias parameter names, in the order of its covariance block.
+_SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s in SENSORS}
+
+
 def _sensor_block(
     covariance: ParameterCovariance | None, sensor: str
 ) -> ParameterCovariance | None:
     """The gain and bias block of one sensor, names without the sensor prefix."""
     if covariance is None:
         return None
-    names = [n for n in _gain_names(sensor) + _bias_names(sensor) if n in covariance.names]
+    positions = covariance._positions
+    names = [n for n in _SENSOR_NAMES[sensor] if n in positions]
     if not names:
         return None
-    idx = [covariance.index(n) for n in names]
+    idx = [positions[n] for n in names]
     return ParameterCovariance(
         tuple(n.split(".", 1)[1] for n in names), covariance.matrix[np.ix_(idx, idx)]
     )

@@ -100,6 +100,10 @@ class _LogOptions(TypedDict, total=False):
     time_col: str | None
     pose_col: str | None
     drop_nan: bool
+    decimal: str | None
+    split_on_reset: bool
+    imu_topic: str | None
+    mag_topic: str | None
 
 
 class _CalibrateOptions(_LogOptions, total=False):
@@ -118,6 +122,8 @@ class _CalibrateOptions(_LogOptions, total=False):
     window: float | None
     trim: float | None
     still_threshold: float | None
+    poses: str
+    accel_sign: str
 
 
 class _ParsedOptions(_CalibrateOptions, total=False):
@@ -457,6 +463,20 @@ def _log_options(f: _Command) -> _Command:
         click.option("--time-col", help="Time column (s; ms/us/ns recognised)."),
         click.option("--pose-col", help="Pose-label column: rows are grouped by it."),
         click.option("--drop-nan", is_flag=True, help="Drop rows with NaN/inf instead of failing."),
+        click.option(
+            "--decimal",
+            type=click.Choice([".", ","]),
+            help="Decimal mark of a text log (default: '.', or ',' when the file shows it).",
+        ),
+        click.option(
+            "--split-on-reset",
+            is_flag=True,
+            help="Time going backwards starts a new segment instead of being an error.",
+        ),
+        click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one)."),
+        click.option(
+            "--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic (default: the one)."
+        ),
     ]
     for option in reversed(options):
         f = option(f)
@@ -492,18 +512,16 @@ def _detect_options(f: _Command) -> _Command:
     return f
 
 
-def _load(log: str, cols: _LogOptions) -> Log:
-    """The log, its columns as the ``_log_options`` give them (popped from ``cols``)."""
+def _load(log: str, cols: _LogOptions, progress: _Progress = None) -> Log:
+    """The log, its columns and reading options as the ``_log_options`` give them (popped
+    from ``cols``); options left at their defaults are not passed."""
     load_log = _lazy(".logs").load_log
-    loaded: Log = load_log(
-        log,
-        accel_cols=cols.pop("accel_cols"),
-        mag_cols=cols.pop("mag_cols"),
-        gyro_cols=cols.pop("gyro_cols"),
-        time_col=cols.pop("time_col"),
-        pose_col=cols.pop("pose_col"),
-        drop_nan=cols.pop("drop_nan"),
-    )
+    given: dict[str, Any] = cols  # type: ignore[assignment]
+    taken = {name: given.pop(name) for name in _LogOptions.__annotations__ if name in given}
+    reading = {k: v for k, v in taken.items() if v is not None and v is not False}
+    if progress is not None:
+        reading["on_progress"] = progress
+    loaded: Log = load_log(log, **reading)
     return loaded
 
 
@@ -516,71 +534,35 @@ def _run_calibration(
     take the library's defaults (the method, robust fitting, estimated pose-level noise).
     ``progress`` hears the steps (and the library's progress lines) when given.
     """
-    logs, pipeline = _lazy(".logs"), _lazy(".pipeline")
-    notes = [
-        "columns used: "
-        + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
-    ]
-    notes += log.notes
-    if log.dropped:
-        notes.append(f"dropped {log.dropped} row(s) with NaN or inf values")
-    P = None
-    if opts.get("mag_axes"):
-        if log.mag is None:
-            raise InputError("--mag-axes given but the log has no magnetometer columns")
-        P = logs.parse_axes(opts["mag_axes"])
-        log.mag = log.mag @ P.T
-        notes.append(
-            f"magnetometer axes mapped {opts['mag_axes']} for the fit and folded back into its "
-            "gain: apply the result to the raw columns as logged"
-        )
-    if progress is not None:
-        progress(f"finding the poses in {log.path}")
-    poses: PoseSet = logs.poses_from_log(
-        log,
-        rate=opts.get("rate"),
-        window=opts.get("window"),
-        min_still=opts.get("min_still"),
-        trim=opts.get("trim"),
-        threshold=opts.get("still_threshold"),
-    )
-    how = (
-        f"grouped by the pose column {log.used['pose'][0]!r}"
-        if poses.detection is None
-        else "found by still detection" + (f" at {poses.rate:g} Hz" if poses.rate else "")
-    )
-    distinct = len({e["orientation"] for e in poses.entries})
-    notes.append(f"{poses.n} poses {how} ({distinct} distinct orientations)")
-    choices: dict[str, object] = {}
-    if opts.get("method"):
-        choices["method"] = opts["method"]
-    if opts.get("pose_noise") is not None:
-        choices["pose_noise"] = opts["pose_noise"]
+    choices: dict[str, Any] = {
+        key: opts[key]
+        for key in ("method", "pose_noise", "poses", "accel_sign", "mag_axes", "rate")
+        if opts.get(key) is not None
+    }
     if opts.get("no_robust"):
         # trimming bumps inside a pose is part of the robust fit: off together
         choices.update(robust=False, trim=False)
-    if progress is not None:
-        progress(f"calibrating {poses.n} poses ({opts.get('method') or _DEFAULT_METHOD})")
-        choices["on_progress"] = progress
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        cal: Calibration = pipeline.calibrate_log(
+        run = _lazy(".pipeline").run_log(
             log,
-            poses,
+            window=opts.get("window"),
+            min_still=opts.get("min_still"),
+            still_trim=opts.get("trim"),
+            still_threshold=opts.get("still_threshold"),
             gravity=opts.get("gravity"),
             field_strength=opts.get("field_strength"),
             noise=_parse_noise(opts.get("noise")),
-            mag_axes=opts.get("mag_axes"),
-            P=P,
             mag_mirrored=bool(opts.get("mag_mirrored")),
+            on_progress=progress,
             **choices,
         )
     # the library's warnings belong in the summary, not as tracebacks; numpy's floating-point
     # RuntimeWarnings are the library's business and never reach the terminal
-    notes += [
+    notes = list(run.notes) + [
         f"warning: {_one_line(str(w.message))}" for w in caught if w.category is not RuntimeWarning
     ]
-    return cal, poses, pipeline.document(cal, poses), notes
+    return run.calibration, run.poses, run.document(), notes
 
 
 def _write_json(path: str | Path, doc: dict[str, object]) -> None:
@@ -625,6 +607,22 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
 )
 @click.option("--mag-axes", help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.")
 @click.option(
+    "--accel-sign",
+    type=click.Choice(["specific-force", "gravity"]),
+    default="specific-force",
+    show_default=True,
+    help="What the accelerometer reports at rest: specific force (+1 g up) or gravity (-1 g up, "
+    "some loggers); the result corrects to specific force either way.",
+)
+@click.option(
+    "--poses",
+    type=click.Choice(["still", "windows"]),
+    default="still",
+    show_default=True,
+    help="Without a pose column: detect still intervals, or cut the log into windows of "
+    "--window seconds (a log turned slowly with no rests).",
+)
+@click.option(
     "--mag-mirrored",
     is_flag=True,
     help="The magnetometer's axes (after --mag-axes) are left-handed relative to the "
@@ -663,7 +661,7 @@ def calibrate(
     with _progress(quiet) as progress:
         if progress is not None:
             progress(f"reading {log}")
-        data = _load(log, options)
+        data = _load(log, options, progress)
         cal, _, doc, notes = _run_calibration(data, options, progress)
     if output is not None:
         _write_json(output, doc)
@@ -688,6 +686,11 @@ def calibrate(
 )
 @click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
+@click.option(
+    "--decimal", type=click.Choice([".", ","]), help="Decimal mark of a text log (default: seen)."
+)
+@click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one).")
+@click.option("--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic.")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 @_force
 def apply(
@@ -696,12 +699,17 @@ def apply(
     output: str,
     accel_cols: str | None,
     mag_cols: str | None,
+    decimal: str | None,
+    imu_topic: str | None,
+    mag_topic: str | None,
     quiet: bool,
     force: bool,
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
 
-    The output's suffix names its format; CSV to CSV is streamed, line by line.
+    The output's suffix names its format; CSV to CSV is streamed in chunks, every input
+    line kept byte for byte. A ROS bag gives its table (t, ax.., gx.., mx..) with the
+    calibrated columns.
     """
     _claim([output], {"calibration": cal_json, "log": log}, force)
     logs = _lazy(".logs.apply")
@@ -711,7 +719,15 @@ def apply(
         if progress is not None:
             progress(f"applying the calibration to {log}")
         used = logs.apply_to_file(
-            cal, log, output, accel_cols=accel_cols, mag_cols=mag_cols, on_progress=progress
+            cal,
+            log,
+            output,
+            accel_cols=accel_cols,
+            mag_cols=mag_cols,
+            decimal=decimal,
+            imu_topic=imu_topic,
+            mag_topic=mag_topic,
+            on_progress=progress,
         )
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
@@ -856,10 +872,10 @@ def report(
     with _progress(quiet) as progress:
         if progress is not None:
             progress(f"reading {log}")
-        data = _load(log, cols)
+        data = _load(log, cols, progress)
         if progress is not None:
             progress("drawing the report")
-        report_module.write_report(cal, data, output, png_dir=png_dir)
+        report_module.write_report(cal, data, output, png_dir=png_dir, on_progress=progress)
     if not quiet:
         click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
 

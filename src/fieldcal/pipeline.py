@@ -1,33 +1,60 @@
-"""From a log's poses to a calibration: the checks a log needs, ``fieldcal.calibrate``, the
-magnetometer axis map folded back, and the JSON document the ``calibrate`` command writes."""
+"""From a log to a calibration: its poses (still detection, windows or a pose column), the
+checks a log needs, ``fieldcal.calibrate``, the magnetometer's axis map and the accelerometer's
+sign folded back, and the JSON document the ``calibrate`` command writes.
+
+:func:`calibrate_log` is the library's form of ``fieldcal calibrate``; :func:`run_log` is the
+same on a :class:`~fieldcal.logs.log.Log` with the poses and notes the CLI prints.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .api import NoiseSpec, calibrate
+from .api import calibrate
 from .calibration import Calibration
 from .errors import InputError
-from .logs import Log, PoseSet
-from .logs.poses import poses_orientations
+from .geometry.frames import parse_axes
+from .logs import Log, PoseSet, poses_from_log, turns_slowly
+from .logs.poses import POSE_SOURCES
+from .logs.sources import read_log
 from .methods import get as get_method
 from .stats.poses import check_spread, stats_from_means
 
-__all__ = ["calibrate_log", "document", "fold_axes"]
+__all__ = [
+    "ACCEL_SIGNS",
+    "POSE_SOURCES",
+    "LogCalibration",
+    "calibrate_log",
+    "document",
+    "fold_axes",
+    "read_log",
+    "run_log",
+]
+
+#: What the accelerometer reports (``accel_sign=``, ``--accel-sign``).
+ACCEL_SIGNS = ("specific-force", "gravity")
+#: Options of :func:`calibrate_log` that go to the reader, not to the calibration.
+READ_OPTIONS = ("decimal", "split_on_reset", "imu_topic", "mag_topic")
 
 Array = NDArray[np.float64]
 
 
-def _check_poses(poses: PoseSet, method: str) -> None:
+def _check_poses(poses: PoseSet, method: str, log: Log, rate: float | None) -> None:
     n = poses.n
     sensors = [(name, getattr(poses, name)) for name in ("accel", "mag")]
     sensors = [(name, samples) for name, samples in sensors if samples is not None]
     need = get_method(method).min_poses_for(len(sensors))
     if n < need:
+        advice = f"hold the device still in {need - n} or more further orientations"
+        if poses.source == "still" and turns_slowly(log, rate=rate):
+            advice = "the log turns slowly without rests: use --poses windows (poses='windows')"
         raise InputError(
             f"{n} pose(s) found; the {method} method needs at least {need}"
             + (
@@ -35,7 +62,7 @@ def _check_poses(poses: PoseSet, method: str) -> None:
                 if len(sensors) == 2
                 else ""
             )
-            + f": hold the device still in {need - n} or more further orientations"
+            + f": {advice}"
         )
     means = {name: np.array([p.mean(axis=0) for p in samples]) for name, samples in sensors}
     try:
@@ -44,7 +71,7 @@ def _check_poses(poses: PoseSet, method: str) -> None:
         raise InputError(str(exc)) from None
     # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
     need = max(need, 8 if len(sensors) == 2 else 9)
-    distinct = len(set(poses_orientations(poses)))
+    distinct = len({entry["orientation"] for entry in poses.entries})
     if distinct < need:
         raise InputError(
             f"the {n} poses show only {distinct} distinct orientations (closer than 3° count as "
@@ -54,94 +81,254 @@ def _check_poses(poses: PoseSet, method: str) -> None:
         )
 
 
-def fold_axes(cal: Calibration, P: Array, spec: str) -> Calibration:
-    """Express a magnetometer calibration fitted on ``P @ raw`` in terms of the raw columns.
+def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Calibration:
+    """Express a calibration fitted on ``P @ raw`` in terms of the raw columns.
 
     ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
-    ``Pᵀ b``, so firmware applies the result to the readings as logged.
+    ``Pᵀ b``, so firmware applies the result to the readings as logged. Used for the
+    magnetometer's axis map (``spec`` recorded as ``options["mag_axes"]``) and for an
+    accelerometer that reports gravity (``P = −I``, ``options["accel_sign"]``).
     """
-    mag = cal.mag
-    if mag is None:
+    fitted = getattr(cal, sensor)
+    if fitted is None:
         return cal
     Pt, A = P.T, np.abs(P.T)
     new = dataclasses.replace(
-        mag,
-        gain=Pt @ mag.gain,
-        bias=Pt @ mag.bias,
-        noise_cov=Pt @ mag.noise_cov @ P,
-        noise_cov_std=None if mag.noise_cov_std is None else A @ mag.noise_cov_std @ A.T,
+        fitted,
+        gain=Pt @ fitted.gain,
+        bias=Pt @ fitted.bias,
+        noise_cov=Pt @ fitted.noise_cov @ P,
+        noise_cov_std=None if fitted.noise_cov_std is None else A @ fitted.noise_cov_std @ A.T,
     )
     covariance = cal.covariance
     if covariance is not None:
         names = list(covariance.names)
         T = np.eye(len(names))
         # raw parameter (i, ...) = Σ_k Pᵀ[i, k] · fitted parameter (k, ...), per gain column
-        triples = [[f"mag.gain[{r},{j}]" for r in range(3)] for j in range(3)]
-        triples.append([f"mag.bias[{r}]" for r in range(3)])
+        triples = [[f"{sensor}.gain[{r},{j}]" for r in range(3)] for j in range(3)]
+        triples.append([f"{sensor}.bias[{r}]" for r in range(3)])
         for triple in triples:
             if all(t in names for t in triple):
                 idx = [names.index(t) for t in triple]
                 T[np.ix_(idx, idx)] = Pt
         covariance = covariance.transformed(T)
-    options = {**cal.options, "mag_axes": spec}
+    key = f"{sensor}_residual"
     poses = tuple(
-        {**row, "mag_residual": list(Pt @ np.asarray(row["mag_residual"]))}
-        if "mag_residual" in row
-        else row
-        for row in cal.poses
+        {**row, key: list(Pt @ np.asarray(row[key]))} if key in row else row for row in cal.poses
     )
-    return dataclasses.replace(cal, mag=new, covariance=covariance, options=options, poses=poses)
+    option = "mag_axes" if sensor == "mag" else "accel_sign"
+    return dataclasses.replace(
+        cal,
+        **{sensor: new},
+        covariance=covariance,
+        options={**cal.options, option: spec},
+        poses=poses,
+    )
 
 
-def calibrate_log(
-    log: Log,
-    poses: PoseSet,
-    *,
-    method: str = "mle",
-    gravity: float | None = None,
-    field_strength: float | None = None,
-    noise: NoiseSpec | None = None,
-    mag_axes: str | None = None,
-    P: Array | None = None,
-    mag_mirrored: bool = False,
-    **options: Any,
-) -> Calibration:
-    """Calibrate from the poses and attach each pose's log position to ``cal.poses``.
+@dataclass(frozen=True)
+class LogCalibration:
+    """A log's calibration with what the command line shows beside it.
 
-    ``P`` is the parsed ``mag_axes`` map, already applied to ``log.mag``; it is folded back so
-    the calibration applies to the raw columns. Further ``options`` go to
-    :func:`fieldcal.calibrate` (``pose_noise``, ``robust``, the method's options). Every pose
-    found is listed; a pose the robust fit dropped has ``rejected`` set to the reason.
+    Attributes
+    ----------
+    calibration : Calibration
+        The result; ``calibration.poses`` lists every pose found, with its rows in the log.
+    poses : PoseSet
+        The poses the log was cut into and how (still detection, windows or a pose column).
+    notes : tuple of str
+        Lines on the input: the columns used, how the poses were found, folded conventions.
     """
-    _check_poses(poses, method)
-    # numpy's errors and warnings stay inside: calibrate says what is wrong in one line
-    cal = calibrate(
-        poses.accel,
-        poses.mag,
-        method=method,
-        gravity=gravity,
-        field_strength=field_strength,
-        noise=noise,
-        mag_mirrored=mag_mirrored,
-        **options,
-    )
+
+    calibration: Calibration
+    poses: PoseSet
+    notes: tuple[str, ...]
+
+    def document(self) -> dict[str, Any]:
+        """The calibration JSON the ``calibrate`` command writes."""
+        return document(self.calibration, self.poses)
+
+
+def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise InputError(
+            f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {value!r}"[:200]
+        )
+    return value
+
+
+def run_log(
+    log: Log,
+    *,
+    poses: str | PoseSet = "still",
+    accel_sign: str = "specific-force",
+    mag_axes: str | None = None,
+    rate: float | None = None,
+    window: float | None = None,
+    min_still: float | None = None,
+    still_trim: float | None = None,
+    still_threshold: float | None = None,
+    method: str = "mle",
+    on_progress: Callable[[str], None] | None = None,
+    **options: Any,
+) -> LogCalibration:
+    """Find a log's poses and calibrate from them: the path of ``fieldcal calibrate``.
+
+    See :func:`calibrate_log` for the parameters. ``log`` is not modified: the axis map and the
+    accelerometer's sign apply to copies of its arrays.
+    """
+    if isinstance(poses, str):
+        _check_choice("poses", poses, POSE_SOURCES)
+    _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
+    notes = [
+        "columns used: "
+        + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
+    ]
+    notes += log.notes
+    if log.dropped:
+        notes.append(f"dropped {log.dropped} row(s) with NaN or inf values")
+    P = None
+    if mag_axes is not None:
+        if log.mag is None:
+            raise InputError("--mag-axes given but the log has no magnetometer columns")
+        P = parse_axes(mag_axes)
+        log = dataclasses.replace(log, mag=log.mag @ P.T)
+        notes.append(
+            f"magnetometer axes mapped {mag_axes} for the fit and folded back into its gain: "
+            "apply the result to the raw columns as logged"
+        )
+    gravity_sign = accel_sign == "gravity"
+    if gravity_sign:
+        if log.accel is None:
+            raise InputError("--accel-sign gravity given but the log has no accelerometer columns")
+        log = dataclasses.replace(log, accel=-log.accel)
+        notes.append(
+            "accelerometer read as reporting gravity (−1 g on the up axis): fitted on the "
+            "negated readings and folded back into its gain, so the correction gives the "
+            "specific force (+1 g up) from the raw columns as logged"
+        )
+    if isinstance(poses, PoseSet):
+        found = poses
+    else:
+        if on_progress is not None:
+            on_progress(f"finding the poses in {log.path}")
+        found = poses_from_log(
+            log,
+            poses=poses,
+            rate=rate,
+            window=window,
+            min_still=min_still,
+            trim=still_trim,
+            threshold=still_threshold,
+        )
+    notes.append(_how_found(log, found))
+    _check_poses(found, method, log, rate)
+    if on_progress is not None:
+        on_progress(f"calibrating {found.n} poses ({method})")
+    cal = calibrate(found.accel, found.mag, method=method, on_progress=on_progress, **options)
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
+    if gravity_sign:
+        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
     fitted = {int(row["index"]): row for row in cal.poses}
     dropped = {r.index: r for r in cal.rejected}
     rows = []
-    for i, entry in enumerate(poses.entries):
+    for i, entry in enumerate(found.entries):
         row = {**fitted.get(i, {"index": i}), **entry}
         if i in dropped:
             row["rejected"] = f"{dropped[i].sensor}: {dropped[i].reason}"
         rows.append(row)
-    options = {**cal.options, "log": log.path, "columns": log.used}
-    return dataclasses.replace(cal, poses=tuple(rows), options=options)
+    provenance = {"log": log.path, "columns": log.used}
+    cal = dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
+    return LogCalibration(cal, found, tuple(notes))
+
+
+def _how_found(log: Log, poses: PoseSet) -> str:
+    at = f" at {poses.rate:.4g} Hz" if poses.rate else ""
+    if poses.windows is not None:
+        cut = poses.windows
+        length = f"{cut.seconds:.3g} s" if cut.seconds else f"{cut.window}-sample"
+        how = (
+            f"cut into {length} windows{at} (motion {100 * cut.motion:.2g} % of the field, "
+            f"limit {100 * cut.limit:.2g} %)"
+        )
+    elif poses.detection is not None:
+        how = f"found by still detection{at}"
+    elif "pose" in log.used:
+        how = f"grouped by the pose column {log.used['pose'][0]!r}"
+    else:
+        how = "given"
+    distinct = len({e["orientation"] for e in poses.entries})
+    return f"{poses.n} poses {how} ({distinct} distinct orientations)"
+
+
+def calibrate_log(
+    source: Log | str | os.PathLike[str] | object,
+    *,
+    accel_cols: str | Sequence[str] | None = None,
+    mag_cols: str | Sequence[str] | None = None,
+    gyro_cols: str | Sequence[str] | None = None,
+    time_col: str | None = None,
+    pose_col: str | None = None,
+    drop_nan: bool = False,
+    **options: Any,
+) -> Calibration:
+    """Calibrate from a log: read it, find its poses, fit, as ``fieldcal calibrate`` does.
+
+    Parameters
+    ----------
+    source : Log, path, DataFrame, pyarrow Table or mapping of columns
+        The log (see :func:`fieldcal.read_log`).
+    accel_cols, mag_cols, gyro_cols, time_col, pose_col, drop_nan
+        Columns and missing values, as in :func:`fieldcal.read_log` (ignored for a ``Log``).
+    poses : {"still", "windows"}
+        How the log is cut into poses when it has no pose column: still detection (default),
+        or consecutive windows of ``window`` seconds for a log turned slowly with no rests.
+    accel_sign : {"specific-force", "gravity"}
+        What the accelerometer reports: the specific force (+1 g on the up axis at rest,
+        default) or gravity (−1 g up, some loggers); the result corrects to the specific force.
+    mag_axes : str, optional
+        The magnetometer's axes onto the accelerometer's, e.g. ``"+y+x-z"``; folded back so
+        the result applies to the raw columns.
+    rate : float, optional
+        Samples per second; overrides the time column's rate for the durations below.
+    window, min_still, still_trim, still_threshold : float, optional
+        Still detection: moving-variance window, shortest still interval, the part cut at each
+        end (seconds, samples without a rate) and the accelerometer threshold (raw units).
+    on_progress : callable, optional
+        Called with one line of text at each step.
+    **options
+        Everything :func:`fieldcal.calibrate` takes: ``method``, ``gravity``,
+        ``field_strength``, ``noise``, ``pose_noise``, ``robust``, ``mag_mirrored``, ...
+
+    Returns
+    -------
+    Calibration
+        ``cal.poses`` lists every pose found, with its rows in the log and, for a pose the
+        robust fit dropped, ``rejected``.
+    """
+    reading = {k: options.pop(k) for k in READ_OPTIONS if k in options}
+    if options.get("on_progress") is not None:
+        reading["on_progress"] = options["on_progress"]
+    log = read_log(
+        source,
+        accel_cols=accel_cols,
+        mag_cols=mag_cols,
+        gyro_cols=gyro_cols,
+        time_col=time_col,
+        pose_col=pose_col,
+        drop_nan=drop_nan,
+        **reading,
+    )
+    return run_log(log, **options).calibration
 
 
 def document(cal: Calibration, poses: PoseSet) -> dict[str, Any]:
-    """The calibration JSON with the still detection's parameters (``still_detection``)."""
+    """The calibration JSON with how the poses were found: ``still_detection`` (the
+    detector's parameters) or ``pose_windows`` (the windows and the motion measured in them)."""
     doc = cal.to_dict()
     if poses.detection is not None:
-        doc["still_detection"] = {**poses.detection.to_dict(), "rate_hz": poses.rate}
+        doc["still_detection"] = poses.record()
+    elif poses.windows is not None:
+        doc["pose_windows"] = poses.record()
     return doc

@@ -34,6 +34,7 @@ __all__ = [
     "algebraic_fit",
     "ellipsoid_radii",
     "family_fit",
+    "family_fits",
     "li_griffiths_fit",
     "pencil_fits",
     "quadric_from_coefficients",
@@ -317,20 +318,23 @@ _SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
 
 
 def spd_sqrt(M: Array) -> tuple[Array, Array]:
-    """Symmetric square root of a symmetric positive definite matrix, and of its inverse."""
+    """Symmetric square root of a symmetric positive definite matrix, and of its inverse;
+    batched over leading axes."""
     w, V = np.linalg.eigh(M)
-    w = np.maximum(w, 1e-300)
-    return (V * np.sqrt(w)) @ V.T, (V / np.sqrt(w)) @ V.T
+    root = np.sqrt(np.maximum(w, 1e-300))[..., None, :]
+    Vt = np.swapaxes(V, -1, -2)
+    return (V * root) @ Vt, (V / root) @ Vt
 
 
-def _family_design(y: Array, weights: Array) -> tuple[Array, Array, float, Array]:
-    """The normalised points and the full quadratic design, rows scaled by ``√w``."""
-    wsum = weights.sum()
-    c0 = weights @ y / wsum
-    d = y - c0
-    s0 = float(np.sqrt(weights @ np.einsum("ni,ni->n", d, d) / wsum))
-    z = d / s0 if s0 > 0 else d
-    return z, c0, s0, np.sqrt(weights / wsum)[:, None]
+def _family_design(y: Array, weights: Array) -> tuple[Array, Array, Array, Array]:
+    """The normalised points, their centre and scale, and the rows' scaling by ``√w``, for
+    point sets (..., n, 3) with weights (..., n)."""
+    wsum = weights.sum(axis=-1)
+    c0 = np.einsum("...n,...ni->...i", weights, y) / wsum[..., None]
+    d = y - c0[..., None, :]
+    s0 = np.sqrt(np.einsum("...n,...ni,...ni->...", weights, d, d) / wsum)
+    z = d / np.where(s0 > 0, s0, 1.0)[..., None, None]
+    return z, c0, s0, np.sqrt(weights / wsum[..., None])[..., None]
 
 
 def family_fit(
@@ -343,38 +347,56 @@ def family_fit(
     ``u`` on the surface, or ``None`` when the fit is not an ellipsoid. The full family adds a
     weak pull towards a sphere that only matters when the points do not fix it (8 points).
     """
-    z, c0, s0, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
-    if not s0 > 0:
-        return None
-    x1, x2, x3 = z.T
+    y = np.asarray(y, dtype=float)
+    K, c, ok = family_fits(y[None], np.asarray(weights, dtype=float)[None], family)
+    return (K[0], c[0]) if ok[0] else None
+
+
+def family_fits(
+    y: Array, weights: Array, family: str = "full"
+) -> tuple[Array, Array, NDArray[np.bool_]]:
+    """:func:`family_fit` for several point sets at once, (S, n, 3) with weights (S, n): the
+    gains (S, 3, 3), centres (S, 3) and which fits are ellipsoids (entries of the others are
+    meaningless). One call of each LAPACK routine for all the sets."""
+    z, c0, s0, sw = _family_design(y, weights)
+    x1, x2, x3 = z[..., 0], z[..., 1], z[..., 2]
     if family == "full":
         quad = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
     elif family == "axes":
         quad = [x1 * x1, x2 * x2, x3 * x3]
     else:
         quad = [x1 * x1 + x2 * x2 + x3 * x3]
-    D = np.column_stack([*quad, 2 * z, np.ones(len(z))]) * sw
+    D = np.stack([*quad, 2 * x1, 2 * x2, 2 * x3, np.ones_like(x1)], axis=-1) * sw
+    S = len(D)
     if family == "full":
-        D = np.vstack([D, _SPHERE_PULL])
-    theta = np.linalg.svd(D, full_matrices=False)[2][-1]
+        D = np.concatenate([D, np.broadcast_to(_SPHERE_PULL, (S, *_SPHERE_PULL.shape))], axis=1)
+    theta = np.linalg.svd(D, full_matrices=False)[2][:, -1]
     if family == "full":
-        A = theta[SYM_INDEX]
+        A = theta[:, SYM_INDEX]
     elif family == "axes":
-        A = np.diag(theta[:3])
+        A = np.zeros((S, 3, 3))
+        A.reshape(S, 9)[:, ::4] = theta[:, :3]
     else:
-        A = np.eye(3) * theta[0]
-    beta, gamma = theta[-4:-1], theta[-1]
+        A = np.eye(3) * theta[:, 0, None, None]
+    beta, gamma = theta[:, -4:-1], theta[:, -1]
+    ok = s0 > 0
     try:
-        zc = -np.linalg.solve(A, beta)
-    except np.linalg.LinAlgError:
-        return None
-    M = A / (zc @ A @ zc - gamma)
-    if not np.all(np.isfinite(M)):
-        return None
-    w, V = np.linalg.eigh(M)
-    if w[0] <= 0:
-        return None
-    return s0 * (V / np.sqrt(w)) @ V.T, c0 + s0 * zc
+        zc = -np.linalg.solve(A, beta[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # one set's quadric has no centre: solve them one by one
+        zc = np.full((S, 3), np.nan)
+        for s in range(S):
+            try:
+                zc[s] = -np.linalg.solve(A[s], beta[s])
+            except np.linalg.LinAlgError:
+                ok[s] = False
+    with np.errstate(all="ignore"):
+        M = A / (np.einsum("si,sij,sj->s", zc, A, zc) - gamma)[:, None, None]
+    ok &= np.isfinite(M).all(axis=(1, 2))
+    w, V = np.linalg.eigh(np.where(ok[:, None, None], M, np.eye(3)))
+    ok &= w[:, 0] > 0
+    root = np.sqrt(np.where(w > 0, w, 1.0))[:, None, :]
+    K = s0[:, None, None] * (V / root) @ V.transpose(0, 2, 1)
+    return K, c0 + s0[:, None] * zc, ok
 
 
 def pencil_fits(
@@ -386,7 +408,8 @@ def pencil_fits(
     Returns per member the symmetric gain ``K`` (n_grid, 3, 3), the centre (n_grid, 3) and a
     mask of the members that are ellipsoids.
     """
-    z, c0, s0, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
+    z, c0, scale, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
+    s0 = float(scale)
     x1, x2, x3 = z.T
     D = np.column_stack(
         [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3, 2 * z, np.ones(len(z))]

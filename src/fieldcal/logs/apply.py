@@ -4,15 +4,20 @@
 text suffix, ``.parquet``/``.pq``, ``.npz``), atomically (:func:`fieldcal._files.replacing`):
 an error or Ctrl-C half-way leaves the previous output untouched and no fragment.
 
-- Text in, text out is streamed ``CHUNK_ROWS`` rows at a time, so files larger than memory
-  work: every input line is copied byte for byte (comment and blank lines in place, the
-  line endings, a byte-order mark) and the calibrated values follow each data line.
+- Text in, text out is streamed ``CHUNK_ROWS`` lines at a time, so files larger than memory
+  work: every input line is copied byte for byte (comment and blank lines, a preamble above
+  the header, the line endings, a byte-order mark) and the calibrated values follow each data
+  line (and the names the header line, a ``#`` header included). Each chunk is vectorised:
+  numpy's C parser reads the sensors' fields, the calibration runs on all rows at once and the
+  values are formatted in one pass; a chunk numpy would not read exactly as the csv module
+  (quotes, mixed line endings, a bad value) is done line by line, which names the problem.
 - Otherwise the table is read in its own types and written whole: Parquet keeps its schema
   (column types and metadata), NPZ each array as it was (dtype and shape; an ``(n, 3)`` sensor
   array gets an ``(n, 3)`` ``<name>_cal``), and columns written as text keep their full
   precision (the shortest text that reads back as the same value of their type).
 
-Calibrated values are doubles; as text, the shortest text that reads back as the same double.
+Calibrated values are doubles; as text, the shortest text that reads back as the same double
+(with a decimal comma in a log written with decimal commas).
 pyarrow (Parquet) loads only when a Parquet file is read or written.
 """
 
@@ -22,10 +27,13 @@ import csv
 import importlib
 import importlib.util
 import io
+import itertools
+import re
 import stat
 import time
 import zipfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
@@ -36,7 +44,9 @@ from numpy.typing import NDArray
 from .._files import replacing, same_file
 from ..errors import InputError
 from .columns import explicit_columns, recognise_columns
-from .readers import Table, _sniff_delimiter, _split, read_table, to_float
+from .readers import Table, read_table, to_float
+from .rosbag import is_bag, read_bag
+from .text import HEAD_LINES, _split, layout, parse_numbers
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -45,8 +55,9 @@ __all__ = ["CHUNK_ROWS", "apply_to_file", "check_pyarrow", "output_format"]
 
 Array = NDArray[np.float64]
 
-#: Rows per chunk when a text log is streamed.
-CHUNK_ROWS = 50_000
+#: Lines per chunk when a text log is streamed: each chunk is parsed, calibrated and formatted
+#: at once (a few tens of MB of text in flight).
+CHUNK_ROWS = 100_000
 #: Seconds between two progress reports.
 PROGRESS_SECONDS = 1.0
 
@@ -106,6 +117,9 @@ def apply_to_file(
     mag_cols: str | Sequence[str] | None = None,
     chunk_rows: int | None = None,
     on_progress: Callable[[str], None] | None = None,
+    decimal: str | None = None,
+    imu_topic: str | None = None,
+    mag_topic: str | None = None,
 ) -> dict[str, list[str]]:
     """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``.
 
@@ -120,9 +134,16 @@ def apply_to_file(
     accel_cols, mag_cols : str or sequence of str, optional
         The sensors' columns (default: recognised by name).
     chunk_rows : int, optional
-        Rows per chunk when text is streamed (default :data:`CHUNK_ROWS`).
+        Lines per chunk when text is streamed (default :data:`CHUNK_ROWS`).
     on_progress : callable, optional
         Told the rows done about once a second while text is streamed (one line of text).
+    decimal : {None, ".", ","}
+        Text logs: the decimal mark (None recognises decimal commas as
+        :func:`~fieldcal.logs.readers.read_table` does); calibrated values are written with
+        the log's own mark.
+    imu_topic, mag_topic : str, optional
+        A ROS bag's topics (:func:`~fieldcal.logs.rosbag.read_bag`): its table (``t``,
+        ``ax``.., ``gx``.., ``mx``..) is written with the calibrated columns.
 
     Returns
     -------
@@ -140,6 +161,11 @@ def apply_to_file(
     if same_file(src, dst):
         raise InputError(f"{dst}: is the input log {src}; write the output to another file")
     check_pyarrow(src, dst)
+    sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
+    columns = {"accel": accel_cols, "mag": mag_cols}
+    if is_bag(src):  # (a rosbag2 bag is a folder)
+        bag = read_bag(src, imu_topic=imu_topic, mag_topic=mag_topic, on_progress=on_progress)
+        return _apply_table(cal, src, dst, sensors, columns, table=bag)
     try:
         mode = src.stat().st_mode
     except FileNotFoundError:
@@ -148,18 +174,18 @@ def apply_to_file(
         raise InputError(f"{src}: is a folder; give the log file inside it")
     if not stat.S_ISREG(mode):  # a pipe would block, a device never end
         raise InputError(f"{src}: is not a regular file; save the log to a file and give that")
-    sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
-    columns = {"accel": accel_cols, "mag": mag_cols}
+    if decimal not in (None, ".", ","):
+        raise InputError(f"decimal must be '.' or ',' (or None to recognise it); got {decimal!r}")
     if output_format(src) == output_format(dst) == "text":
         try:
             return _apply_text(
-                cal, src, dst, sensors, columns, chunk_rows or CHUNK_ROWS, on_progress
+                cal, src, dst, sensors, columns, chunk_rows or CHUNK_ROWS, on_progress, decimal
             )
         except UnicodeDecodeError:
             raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
         except csv.Error as exc:
             raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
-    return _apply_table(cal, src, dst, sensors, columns)
+    return _apply_table(cal, src, dst, sensors, columns, decimal)
 
 
 # ----------------------------------------------------------------------------- shared
@@ -223,6 +249,23 @@ def _ending(line: str) -> tuple[str, str]:
     return body, line[len(body) :]
 
 
+#: Control characters that ``str.split()`` takes for blanks and numpy's parser does not.
+_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+
+
+@dataclass
+class _Text:
+    """What every chunk of a text log needs: where the sensors' fields are, how to write."""
+
+    cal: Calibration
+    src: Path
+    delimiter: str | None
+    decimal: str
+    sep: str
+    where: dict[str, list[int]]
+    used: dict[str, list[str]]
+
+
 def _apply_text(
     cal: Calibration,
     src: Path,
@@ -231,6 +274,7 @@ def _apply_text(
     columns: dict[str, str | Sequence[str] | None],
     chunk_rows: int,
     on_progress: Callable[[str], None] | None,
+    decimal: str | None,
 ) -> dict[str, list[str]]:
     size = max(src.stat().st_size, 1)
     with (
@@ -238,19 +282,20 @@ def _apply_text(
         replacing(dst) as temp,
         temp.open("w", newline="", encoding="utf-8") as out,
     ):
-        lines: Iterator[str] = iter(handle)
-        header_line = None
-        for line in lines:
-            if _is_data(line):
-                header_line = line
+        head: list[str] = []
+        count = 0
+        for line in handle:  # the lines the header is looked for in (the readers' rule)
+            head.append(line)
+            count += _is_data(line)
+            if count == HEAD_LINES:
                 break
-            out.write(line)  # comments and blank lines before the header, as they were
-        if header_line is None:
+        if count == 0:
             raise InputError(f"{src}: the file is empty; give a CSV with a header line")
-        body, ending = _ending(header_line)
-        content = body.lstrip("\ufeff")
-        delimiter = _sniff_delimiter(content)
-        header = [h.strip() for h in _split([content], delimiter)[0]]
+        found = layout(src, [head[0].removeprefix("\ufeff"), *head[1:]], decimal)
+        out.writelines(head[: found.header_index])  # preamble, comments, blank lines as they were
+        body, ending = _ending(head[found.header_index])
+        delimiter = found.delimiter
+        header = [h.strip() for h in _split([found.header], delimiter)[0]]
         used = _columns_for_apply(str(src), header, sensors, columns)
         where = {s: [header.index(c) for c in cols] for s, cols in used.items()}
         new_names = [f"{c}_cal" for cols in used.values() for c in cols]
@@ -264,27 +309,15 @@ def _apply_text(
             names = buffer.getvalue()
         out.write(f"{body}{sep}{names}{ending or chr(10)}")
 
-        rows_done, chars, last = 0, len(header_line), time.monotonic()
-        while True:
-            chunk: list[tuple[str, str, bool]] = []
-            data = 0
-            for line in lines:
-                chars += len(line)
-                body, ending = _ending(line)
-                is_data = _is_data(line)
-                chunk.append((body, ending, is_data))
-                data += is_data
-                if data == chunk_rows:
-                    break
-            if not chunk:
-                break
-            tails = _tails(cal, src, chunk, delimiter, sep, where, used, rows_done)
-            it = iter(tails)
-            out.writelines(
-                f"{body}{sep}{next(it)}{ending}" if is_data else body + ending
-                for body, ending, is_data in chunk
-            )
-            rows_done += data
+        job = _Text(cal, src, delimiter, found.decimal, sep, where, used)
+        lines = itertools.chain(head[found.start :], handle)
+        rows_done, last = 0, time.monotonic()
+        chars = sum(len(line) for line in head[: found.start])
+        while chunk := list(itertools.islice(lines, chunk_rows)):
+            text, rows = _chunk(job, chunk, rows_done)
+            out.write(text)
+            rows_done += rows
+            chars += sum(map(len, chunk))
             now = time.monotonic()
             if on_progress is not None and now - last >= PROGRESS_SECONDS:
                 last = now
@@ -292,28 +325,92 @@ def _apply_text(
     return used
 
 
-def _tails(
-    cal: Calibration,
-    src: Path,
-    chunk: list[tuple[str, str, bool]],
-    delimiter: str | None,
-    sep: str,
-    where: dict[str, list[int]],
-    used: dict[str, list[str]],
-    first_row: int,
-) -> list[str]:
-    """The calibrated values to append to each data line of ``chunk``, as text."""
+def _chunk(job: _Text, chunk: list[str], first_row: int) -> tuple[str, int]:
+    """The output text of a chunk of lines and its number of data rows: every line as it was,
+    the calibrated values after each data line. Vectorised; lines numpy does not parse exactly
+    as the csv module and ``float`` do are done line by line (:func:`_tails`)."""
+    joined = "".join(chunk)
+    fast = _fast_chunk(job, joined)
+    if fast is not None:
+        return fast
+    split = [(*_ending(line), _is_data(line)) for line in chunk]
+    tails = iter(_tails(job, split, first_row))
+    text = "".join(
+        f"{body}{job.sep}{next(tails)}{ending}" if is_data else body + ending
+        for body, ending, is_data in split
+    )
+    return text, sum(is_data for _, _, is_data in split)
+
+
+def _fast_chunk(job: _Text, joined: str) -> tuple[str, int] | None:
+    """:func:`_chunk` for lines with one kind of line ending, no quotes and numbers numpy's
+    parser reads; None otherwise."""
+    if '"' in joined or (
+        job.delimiter is None and (not joined.isascii() or _CONTROL.search(joined))
+    ):
+        return None  # a quoted delimiter would shift the fields; str.split() knows more blanks
+    if job.decimal == "," and "." in joined:
+        return None  # a point in a decimal-comma log is named line by line
+    n_cr = joined.count("\r")
+    if n_cr == 0:
+        eol = "\n"
+    elif n_cr == joined.count("\r\n") == joined.count("\n"):
+        eol = "\r\n"
+    else:
+        return None  # mixed line endings, or carriage returns alone
+    pieces = joined.split(eol)
+    ended = pieces[-1] == ""
+    if ended:
+        pieces.pop()
+    everything = "#" not in joined and all(map(str.strip, pieces))
+    mask = None if everything else [_is_data(p) for p in pieces]
+    data = pieces if mask is None else list(itertools.compress(pieces, mask))
+    if not data:
+        return joined, 0
+    idx = [i for cols in job.where.values() for i in cols]
+    numbers = parse_numbers(
+        [line.replace(",", ".") for line in data] if job.decimal == "," else data,
+        job.delimiter,
+        idx,
+    )
+    if numbers is None or len(numbers) != len(data):
+        return None
+    values: list[list[float]] = []
+    k = 0
+    for sensor, cols in job.where.items():
+        raw = numbers[:, k : k + len(cols)]
+        values += _correct(job.cal, sensor, raw).T.tolist()
+        k += len(cols)
+    tail = (job.sep + "%r") * len(values)  # repr: the shortest text of the same double
+    if mask is None and job.decimal == ".":  # one format per line, the line's text included
+        text = eol.join(map(("%s" + tail).__mod__, zip(pieces, *values, strict=True)))
+        return text + (eol if ended else ""), len(data)
+    tails = list(map(tail.__mod__, zip(*values, strict=True)))
+    if job.decimal == ",":
+        tails = [t.replace(".", ",") for t in tails]
+    if mask is None:
+        text = eol.join(map(str.__add__, pieces, tails))
+    else:
+        it = iter(tails)
+        text = eol.join(p + next(it) if m else p for p, m in zip(pieces, mask, strict=True))
+    return text + (eol if ended else ""), len(data)
+
+
+def _tails(job: _Text, chunk: list[tuple[str, str, bool]], first_row: int) -> list[str]:
+    """The calibrated values to append to each data line of ``chunk``, as text, line by line
+    (the csv module splits the fields; a bad value is named with its column and data row)."""
     bodies = [body for body, _, is_data in chunk if is_data]
     if not bodies:
         return []
-    rows = _split(bodies, delimiter)
+    src = job.src
+    rows = _split(bodies, job.delimiter)
     if len(rows) != len(bodies):
         raise InputError(
             f"{src}: a quoted field runs over several lines near data row {first_row + 1}; "
             "apply copies the file line by line: write the log as .npz or .parquet"
         )
     texts: list[list[str]] = []
-    for sensor, idx in where.items():
+    for sensor, idx in job.where.items():
         try:
             raw = np.array([[r[i] for i in idx] for r in rows], dtype=str)
         except IndexError:
@@ -322,10 +419,14 @@ def _tails(
                 f"{src}: data row {first_row + short + 1} has too few fields; fix the file"
             ) from None
         values = np.column_stack(
-            [to_float(raw[:, k], used[sensor][k], str(src), first_row) for k in range(3)]
+            [
+                to_float(raw[:, k], job.used[sensor][k], str(src), first_row, decimal=job.decimal)
+                for k in range(3)
+            ]
         )
-        texts += [_text(column) for column in _correct(cal, sensor, values).T]
-    return [sep.join(fields) for fields in zip(*texts, strict=True)]
+        texts += [_text(column) for column in _correct(job.cal, sensor, values).T]
+    tails = [job.sep.join(fields) for fields in zip(*texts, strict=True)]
+    return [t.replace(".", ",") for t in tails] if job.decimal == "," else tails
 
 
 # ----------------------------------------------------------------------------- tables
@@ -372,12 +473,18 @@ def _apply_table(
     dst: Path,
     sensors: list[str],
     columns: dict[str, str | Sequence[str] | None],
+    decimal: str | None = None,
+    *,
+    table: Table | None = None,
 ) -> dict[str, list[str]]:
+    """The calibrated columns through a table read whole (``table``: one already read)."""
     fmt_in, fmt_out = output_format(src), output_format(dst)
     arrays: dict[str, NDArray[Any]] = {}
     compressed = False
     arrow: Any = None
-    if fmt_in == "npz":
+    if table is not None:
+        fmt_in = "table"
+    elif fmt_in == "npz":
         arrays, compressed = _read_npz(src)
         table = _npz_columns(src, arrays)
     elif fmt_in == "parquet":
@@ -391,7 +498,7 @@ def _apply_table(
             ) from None
         table = _parquet_columns(src, arrow)
     else:
-        table = read_table(src)
+        table = read_table(src, decimal=decimal)
     used = _columns_for_apply(table.path, table.names, sensors, columns)
     fixed = {
         sensor: _correct(cal, sensor, np.column_stack([table.numeric(c) for c in cols]))

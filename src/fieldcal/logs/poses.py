@@ -1,23 +1,66 @@
-"""From a log to poses: rows grouped by a pose column, or still intervals detected; each
-pose's orientation label (revisits of one orientation share one)."""
+"""From a log to poses: rows grouped by a pose column, still intervals detected, or a slowly
+turning log cut into short windows; each pose's orientation label (revisits of one orientation
+share one).
+
+Windows (``poses="windows"``) are for logs with no rests, collected the Magneto/MotionCal way:
+the board is turned slowly by hand for a minute. Each window of :data:`WINDOW` (0.25 s) is one
+pose; fieldcal's pose-level noise absorbs what moves inside a window, as long as that is small
+against the field: the mean of readings spread over an arc lies inside the sphere by about
+(arc)²/24 of its radius. Before cutting, the log is checked: the median over the windows of the
+change of the mean across a window (second half against first half) and of the spread of the
+readings about the mean (the sensor's white noise, from successive differences, taken out), each
+against the field's norm, must stay under :data:`MOTION_LIMIT` (5 %). At that limit a steady
+turn sweeps 0.1 rad per window, which shrinks the window mean by 0.04 % of |g|; a wobble of 5 %
+spread shrinks it by about 0.1 %, the order of a good accelerometer's calibration accuracy.
+0.25 s windows then allow about 23°/s, a slow turn by hand (a full turn in 16 s), and still hold
+25 samples at 100 Hz.
+"""
 
 from __future__ import annotations
 
 import math
 import numbers
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TypedDict
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
 from .log import Log
-from .stillness import StillResult, detect_still, power_of_two
+from .stillness import Segment, StillResult, detect_still, power_of_two
 
-__all__ = ["PoseEntry", "PoseSet", "orientation_labels", "poses_from_log", "poses_orientations"]
+__all__ = [
+    "MOTION_LIMIT",
+    "POSE_SOURCES",
+    "WINDOW",
+    "PoseEntry",
+    "PoseSet",
+    "WindowCut",
+    "orientation_labels",
+    "poses_from_log",
+    "poses_orientations",
+    "turns_slowly",
+]
 
 Array = NDArray[np.float64]
+Rows = NDArray[np.int64]
+
+#: How a log without a pose column is cut into poses (``poses=``).
+POSE_SOURCES = ("still", "windows")
+#: Default window of ``poses="windows"``: seconds when the rate is known, else samples.
+WINDOW = (0.25, 25)
+#: Largest motion within a window, against the field's norm, for ``poses="windows"``.
+MOTION_LIMIT = 0.05
+#: A rate given and the time column's may differ by this much before a warning.
+RATE_TOLERANCE = 0.05
+#: Still intervals whose mean moves more than this (median, against the field's norm) come
+#: from a log that turns without rests: a warning. Rests of real logs stay under 0.6 %.
+REST_DRIFT = MOTION_LIMIT / 2
+#: Fewest samples in a window (two per half for the change of the mean).
+_FEWEST = 4
 
 
 class PoseEntry(TypedDict, total=False):
@@ -32,19 +75,71 @@ class PoseEntry(TypedDict, total=False):
     orientation: int  # revisits of one orientation share a label
 
 
+@dataclass(frozen=True)
+class WindowCut:
+    """How a slowly turning log was cut into windows, and the motion measured in them.
+
+    ``drift`` and ``spread`` are medians over the windows, as fractions of the field's norm
+    (|g| for the accelerometer, the field for a magnetometer-only log): the change of the
+    mean across a window and the spread of the readings about it, white noise taken out.
+    """
+
+    window: int  # samples per window
+    seconds: float | None  # the same in seconds (None without a rate)
+    count: int
+    sensor: str  # "accel" or "mag": the sensor checked
+    drift: float
+    spread: float
+    limit: float
+
+    @property
+    def motion(self) -> float:
+        """The larger of ``drift`` and ``spread``: what must stay under ``limit``."""
+        return max(self.drift, self.spread)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "window": self.window,
+            "window_s": self.seconds,
+            "count": self.count,
+            "sensor": self.sensor,
+            "drift": self.drift,
+            "spread": self.spread,
+            "motion": self.motion,
+            "limit": self.limit,
+        }
+
+
 @dataclass
 class PoseSet:
-    """Per-pose samples of each sensor and one entry per pose for the JSON and the summary."""
+    """Per-pose samples of each sensor and one entry per pose for the JSON and the summary.
+
+    ``source`` says how the poses were made: ``"column"`` (the pose column), ``"still"``
+    (still detection, ``detection``) or ``"windows"`` (``windows``); :meth:`record` is that
+    for the JSON.
+    """
 
     accel: list[Array] | None
     mag: list[Array] | None
     entries: list[PoseEntry]
     detection: StillResult | None
     rate: float | None
+    source: str = "still"
+    windows: WindowCut | None = None
 
     @property
     def n(self) -> int:
         return len(self.entries)
+
+    def record(self) -> dict[str, Any]:
+        """How the poses were made, for the JSON: the source, its parameters, the rate."""
+        out: dict[str, Any] = {"source": self.source}
+        if self.detection is not None:
+            out.update(self.detection.to_dict())
+        if self.windows is not None:
+            out.update(self.windows.to_dict())
+        out["rate_hz"] = self.rate
+        return out
 
 
 def _number(value: object) -> float:
@@ -55,18 +150,24 @@ def _number(value: object) -> float:
 
 
 def _rate(log: Log, rate: float | None) -> float | None:
-    if rate is not None:
-        hz = _number(rate)
-        if not (math.isfinite(hz) and hz > 0):
-            raise InputError(
-                f"--rate must be a positive number of samples per second, got {rate!r}"[:200]
-            )
-        return hz
-    if log.time is not None and log.n > 1:
-        step = float(np.median(np.diff(log.time)))
-        if step > 0 and math.isfinite(1.0 / step):
-            return 1.0 / step
-    return None
+    """The rate durations are converted with: ``rate`` when given (a warning when the time
+    column disagrees by more than :data:`RATE_TOLERANCE`), else the time column's."""
+    measured = log.rate if log.n > 1 else None
+    if rate is None:
+        return measured
+    hz = _number(rate)
+    if not (math.isfinite(hz) and hz > 0):
+        raise InputError(
+            f"--rate must be a positive number of samples per second, got {rate!r}"[:200]
+        )
+    if measured is not None and abs(hz / measured - 1.0) > RATE_TOLERANCE:
+        warnings.warn(
+            f"{log.path}: the rate given ({hz:g} Hz) and the time column's ({measured:.4g} Hz) "
+            f"differ by {abs(hz / measured - 1.0):.0%}; durations in seconds use the rate given",
+            UserWarning,
+            stacklevel=3,
+        )
+    return hz
 
 
 def _samples(
@@ -110,10 +211,38 @@ def _label(value: object) -> str:
     return str(value)
 
 
-def _grouped(log: Log) -> tuple[list[NDArray[np.int64]], list[str]]:
+def _run_stats(y: Array, starts: Rows, stops: Rows) -> tuple[Array, Array, Rows]:
+    """Means (k, 3), per-axis variances (k, 3) and counts of the runs ``y[start:stop]`` (in
+    order, not overlapping, gaps between them left out), by two passes of ``add.reduceat``:
+    O(n), no loop over the runs. ``y`` should be of order one (divided by a power of two)."""
+    k, n = len(starts), len(y)
+    count = stops - starts
+    edges = np.column_stack([starts, stops]).ravel()
+    cut = edges[:-1] if edges[-1] >= n else edges  # reduceat's indices stay below n
+    mean = np.add.reduceat(y, cut, axis=0)[0::2] / count[:, None]
+    # each run's rows less its mean (the gaps' rows are not summed): two passes, no cancelling
+    fill = np.zeros((2 * k + 1, y.shape[1]))
+    fill[1::2] = mean
+    dev = y - np.repeat(fill, np.diff(np.concatenate([[0], edges, [n]])), axis=0)
+    np.square(dev, out=dev)
+    var = np.add.reduceat(dev, cut, axis=0)[0::2] / count[:, None]
+    return mean, var, count
+
+
+def _rms_std(var: Array, count: Rows, scale: float) -> list[float | None]:
+    """Each pose's RMS per-axis standard deviation (None for a single sample), as :func:`_std`."""
+    std = np.sqrt(var.mean(axis=1)) * scale
+    return [float(s) if c > 1 else None for s, c in zip(std.tolist(), count.tolist(), strict=True)]
+
+
+def _grouped(log: Log) -> tuple[Rows, Rows, list[str]]:
+    """Rows of each label, concatenated in the order the labels first appear, the count of
+    each label, and the labels."""
     labels = np.asarray(log.pose)
     if labels.dtype.kind == "f":
         keep = np.isfinite(labels)
+    elif labels.dtype.kind in "iu":  # whole numbers: every row labelled, no text to compare
+        keep = np.ones(len(labels), dtype=bool)
     else:
         text = np.char.strip(labels.astype(str))
         keep = (text != "") & (np.char.lower(text) != "nan")
@@ -130,11 +259,10 @@ def _grouped(log: Log) -> tuple[list[NDArray[np.int64]], list[str]]:
     pose_of_row = rank[inverse]
     sort = np.argsort(pose_of_row, kind="stable")
     counts = np.bincount(pose_of_row, minlength=len(order))
-    groups = np.split(rows[sort], np.cumsum(counts)[:-1])
-    return groups, [_label(values[i]) for i in order]
+    return rows[sort], counts, [_label(v) for v in values[order].tolist()]
 
 
-def _check_row_labels(log: Log, rows: NDArray[np.int64]) -> None:
+def _check_row_labels(log: Log, rows: Rows) -> None:
     """Every row its own label: fine for shots (one averaged reading per pose, each in a new
     orientation), a wrong column when neighbouring rows are far closer to each other than
     rows half the log apart (the samples of a continuous log, labelled by a counter, the time
@@ -154,6 +282,183 @@ def _check_row_labels(log: Log, rows: NDArray[np.int64]) -> None:
         )
 
 
+def _segment_edges(log: Log) -> Rows:
+    """Start of every segment of the log and its end: [0, ..., n]."""
+    if log.segment is None:
+        return np.array([0, log.n], dtype=np.int64)
+    breaks = np.flatnonzero(log.segment[1:] != log.segment[:-1]) + 1
+    return np.concatenate([[0], breaks, [log.n]]).astype(np.int64)
+
+
+def _window_edges(log: Log, w: int) -> tuple[Rows, Rows]:
+    """Consecutive windows of ``w`` samples in each segment; a segment's remainder is a
+    window of its own when it holds at least half a window, else left out."""
+    edges = _segment_edges(log)
+    starts: list[Rows] = []
+    stops: list[Rows] = []
+    for a, b in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
+        k, rest = divmod(b - a, w)
+        first = a + w * np.arange(k + (rest >= max(2, (w + 1) // 2)), dtype=np.int64)
+        starts.append(first)
+        stops.append(np.minimum(first + w, b))
+    return np.concatenate(starts), np.concatenate(stops)
+
+
+@dataclass(frozen=True)
+class _Motion:
+    cut: WindowCut
+    means: Array  # window means, readings' units
+    var: Array  # per-axis variances within each window, readings' units
+    counts: Rows
+    scale: float
+    moving: bool  # the mean moves across most windows (beyond the noise)
+
+
+def _field_norm(means: Array, sensor: str) -> float:
+    """The field's norm in the units of ``means`` (pose or window means): |g| as their median
+    norm for the accelerometer; for a magnetometer, whose offset can exceed its field, the
+    radius of the sphere fitted to them (linear least squares, |x|² = 2 c·x + r² − |c|²), or
+    half their range when the fit fails. ``inf`` for a log of zeros."""
+    if sensor == "accel":
+        norm = float(np.median(np.linalg.norm(means, axis=1)))
+        return norm if norm > 0 else math.inf
+    scale = power_of_two(means)
+    x = means / scale
+    A = np.column_stack([2.0 * x, np.ones(len(x))])
+    with np.errstate(all="ignore"):
+        solution = np.linalg.lstsq(A, np.sum(x * x, axis=1), rcond=None)[0]
+    r2 = float(solution[3] + solution[:3] @ solution[:3])
+    if len(x) >= 4 and math.isfinite(r2) and r2 > 0:
+        norm = math.sqrt(r2) * scale
+    else:
+        norm = float(np.mean(np.ptp(means, axis=0))) / 2.0
+    return norm if norm > 0 else math.inf
+
+
+def _still_drift(ref: Array, sensor: str, segments: Sequence[Segment]) -> float | None:
+    """Median over the still intervals (those of one run) of the change of their mean from
+    the first half to the second, the white noise of their own readings taken out, against
+    the field's norm; None without such an interval."""
+    spans = np.array([(s.start, s.stop) for s in segments if not s.pieces], dtype=np.int64)
+    spans = spans.reshape(-1, 2)
+    spans = spans[spans[:, 1] - spans[:, 0] >= _FEWEST]
+    if len(spans) == 0:
+        return None
+    starts, stops = spans[:, 0], spans[:, 1]
+    mids = (starts + stops) // 2
+    scale = power_of_two(ref)
+    y = ref / scale
+    hmean, _, hcount = _run_stats(
+        y, np.column_stack([starts, mids]).ravel(), np.column_stack([mids, stops]).ravel()
+    )
+    mean, var, _ = _run_stats(y, starts, stops)
+    jump2 = np.sum((hmean[1::2] - hmean[0::2]) ** 2, axis=1)
+    expected = var.sum(axis=1) * (1.0 / hcount[0::2] + 1.0 / hcount[1::2])
+    drift = np.sqrt(np.maximum(jump2 - expected, 0.0))
+    return float(np.median(drift)) / _field_norm(mean, sensor)
+
+
+def _measure(log: Log, hz: float | None, window: float | None) -> tuple[_Motion, Rows, Rows]:
+    """Cut the log into windows and measure the motion within them (see the module's text)."""
+    ref, sensor = (log.accel, "accel") if log.accel is not None else (log.mag, "mag")
+    if ref is None:
+        raise InputError(f"{log.path}: the log has neither accelerometer nor magnetometer data")
+    w = _samples(window, "window", WINDOW, hz, log.n)
+    if w < _FEWEST:
+        given = f"{_number(window):g} s at {hz:g} Hz" if hz and window is not None else ""
+        raise InputError(
+            f"--window {given or w} gives {w} sample(s) per window; a window needs at least "
+            f"{_FEWEST}: give a longer --window"
+        )
+    starts, stops = _window_edges(log, w)
+    k = len(starts)
+    if k == 0:
+        raise InputError(
+            f"{log.path}: the log ({log.n} samples) is shorter than one window ({w} samples); "
+            "record longer or give a shorter --window"
+        )
+    scale = power_of_two(ref)
+    y = ref / scale
+    mids = (starts + stops) // 2
+    hmean, _, hcount = _run_stats(
+        y, np.column_stack([starts, mids]).ravel(), np.column_stack([mids, stops]).ravel()
+    )
+    mean, var, count = _run_stats(y, starts, stops)
+    # the sensor's white noise (total over the axes): half the mean square of the successive
+    # differences inside the windows (a slow turn adds little to a difference of neighbours)
+    dd = np.concatenate([[0.0], np.cumsum(np.square(np.diff(y, axis=0)).sum(axis=1))])
+    pairs = int(np.sum(count - 1))
+    noise = 0.5 * float(np.sum(dd[stops - 1] - dd[starts])) / pairs if pairs else 0.0
+    n1, n2 = hcount[0::2].astype(float), hcount[1::2].astype(float)
+    jump2 = np.sum((hmean[1::2] - hmean[0::2]) ** 2, axis=1)
+    expected = noise * (1.0 / np.maximum(n1, 1) + 1.0 / np.maximum(n2, 1))
+    drift = np.sqrt(np.maximum(jump2 - expected, 0.0))
+    spread = np.sqrt(np.maximum(var.sum(axis=1) - noise * (count - 1) / count, 0.0))
+    norm = _field_norm(mean, sensor)
+    cut = WindowCut(
+        window=w,
+        seconds=w / hz if hz else None,
+        count=k,
+        sensor=sensor,
+        drift=float(np.median(drift)) / norm,
+        spread=float(np.median(spread)) / norm,
+        limit=MOTION_LIMIT,
+    )
+    moving = bool(np.median(jump2) > 4.0 * float(np.median(expected)))
+    motion = _Motion(cut, mean * scale, var * scale * scale, count, scale, moving)
+    return motion, starts, stops
+
+
+def _too_fast(log: Log, cut: WindowCut) -> InputError:
+    what = "|g|" if cut.sensor == "accel" else "the field"
+    name = "accelerometer" if cut.sensor == "accel" else "magnetometer"
+    size = f"{cut.seconds:.3g} s" if cut.seconds is not None else f"{cut.window}-sample"
+    shorter = cut.window * 0.8 * cut.limit / cut.motion
+    if shorter >= _FEWEST:
+        better = f"{shorter / cut.window * cut.seconds:.2g} s" if cut.seconds else f"{shorter:.0f}"
+        fix = f"turn more slowly, or give a shorter --window (e.g. {better})"
+    else:
+        fix = "turn more slowly (shorter windows would hold too few samples)"
+    return InputError(
+        f"{log.path}: the log moves too fast for {size} windows: the {name} moves "
+        f"{cut.motion:.1%} of {what} within a window (median over {cut.count} windows; the "
+        f"limit is {cut.limit:.0%}, which keeps the window means on the ellipsoid); {fix}"
+    )
+
+
+def turns_slowly(
+    log: Log,
+    *,
+    rate: float | None = None,
+    window: float | None = None,
+    min_orientations: int = 12,
+) -> bool:
+    """Whether the log turns slowly without rests, so ``poses="windows"`` suits it.
+
+    True when, cut into windows as ``poses="windows"`` would cut it, the mean reading moves
+    (beyond the noise) across most windows, the motion stays under :data:`MOTION_LIMIT`, and
+    the window means show at least ``min_orientations`` orientations 3° apart. For the
+    message when still detection finds too few rests: "the log turns slowly without rests:
+    use --poses windows". ``rate`` and ``window`` as for :func:`poses_from_log`.
+    """
+    return _turns_slowly(log, _rate(log, rate), window, min_orientations)
+
+
+def _turns_slowly(log: Log, hz: float | None, window: float | None, least: int = 12) -> bool:
+    """:func:`turns_slowly` with the rate already resolved."""
+    try:
+        motion, _, _ = _measure(log, hz, window)
+    except InputError:
+        if window is not None:
+            raise  # a bad --window is the user's to fix
+        return False  # a log shorter than one window does not turn slowly
+    if not motion.moving or motion.cut.motion > MOTION_LIMIT or motion.cut.count < 2:
+        return False
+    # the checked sensor's directions: a turn about its field direction alone is not enough
+    directions = _unit_directions(motion.means)
+    return len(set(orientation_labels([directions]).tolist())) >= least
+
+
 def poses_from_log(
     log: Log,
     *,
@@ -163,12 +468,41 @@ def poses_from_log(
     trim: float | None = None,
     threshold: float | None = None,
     factor: float = 3.0,
+    poses: str = "still",
 ) -> PoseSet:
-    """Group the log's rows by its pose column, or detect still intervals.
+    """Group the log's rows by its pose column, detect still intervals, or cut windows.
 
-    ``window``, ``min_still`` and ``trim`` are seconds when the rate is known (``rate`` or the
-    time column), otherwise samples; defaults 0.5 s / 25, 1 s / 50, a quarter window.
+    Parameters
+    ----------
+    log : Log
+        As :func:`~fieldcal.logs.log.load_log` returns it.
+    rate : float, optional
+        Samples per second. Durations (``window``, ``min_still``, ``trim``) are seconds when a
+        rate is known, from ``rate`` or else from the time column
+        (:func:`~fieldcal.logs.log.sample_rate`); otherwise numbers of samples. Given beside a
+        time column, ``rate`` wins, with a warning when the two differ by more than 5 %.
+    window : float, optional
+        Still detection: the moving-variance window (default 0.5 s / 25 samples). Windows:
+        the length of each pose window (default :data:`WINDOW`, 0.25 s / 25 samples).
+    min_still, trim, threshold, factor
+        Still detection: the shortest still interval (default 1 s / 50 samples), the samples
+        cut at each end (default a quarter window), the accelerometer threshold as a per-axis
+        standard deviation (default ``factor`` times the noise floor).
+    poses : "still" or "windows"
+        How a log without a pose column is cut: still intervals (a pose column, when present,
+        groups the rows instead), or consecutive windows of a slowly turning log with no
+        rests (this also overrides a pose column). Windows are refused with an
+        :class:`InputError` naming the motion measured when the log turns too fast for them
+        (:data:`MOTION_LIMIT`); they never span a reset of the clock (``log.segment``).
+
+    Returns
+    -------
+    PoseSet
+        The samples of each pose, one entry per pose (data rows, samples, spread,
+        orientation) and how they were made (``source``, ``detection`` or ``windows``).
     """
+    if poses not in POSE_SOURCES:
+        raise InputError(f"poses must be one of {', '.join(POSE_SOURCES)}; got {poses!r}"[:200])
     hz = _rate(log, rate)
     if threshold is not None and not (math.isfinite(_number(threshold)) and threshold > 0):
         raise InputError(
@@ -178,67 +512,173 @@ def poses_from_log(
     factor_value = _number(factor)
     if not (math.isfinite(factor_value) and factor_value > 0):
         raise InputError(f"factor must be a positive number, got {factor!r}"[:200])
-    detection = None
-    entries: list[PoseEntry] = []
     ref = log.accel if log.accel is not None else log.mag
     if ref is None:
         raise InputError(f"{log.path}: the log has neither accelerometer nor magnetometer data")
+    if poses == "windows":
+        return _windows(log, hz, window)
     if log.pose is not None:
-        groups, labels = _grouped(log)
-        for rows, label in zip(groups, labels, strict=True):
-            entries.append(
-                {
-                    "label": label,
-                    "start": int(log.index[rows[0]]),
-                    "stop": int(log.index[rows[-1]]) + 1,
-                }
-            )
-    else:
-        w = _samples(window, "window", (0.5, 25), hz, log.n)
-        min_samples = _samples(min_still, "min-still", (1.0, 50), hz, log.n)
-        cut = None if trim is None else _samples(trim, "trim", (0.0, 0), hz, log.n, zero=True)
-        detection = detect_still(
-            ref,
-            log.gyro,
-            window=w,
-            min_samples=min_samples,
-            trim=cut,
-            threshold=threshold,
-            factor=factor_value,
-        )
-        if not detection.segments:
-            unit = f"{min_samples / hz:g} s" if hz else f"{min_samples} samples"
+        return _by_column(log, hz)
+    w = _samples(window, "window", (0.5, 25), hz, log.n)
+    min_samples = _samples(min_still, "min-still", (1.0, 50), hz, log.n)
+    cut = None if trim is None else _samples(trim, "trim", (0.0, 0), hz, log.n, zero=True)
+    detection = detect_still(
+        ref,
+        log.gyro,
+        window=w,
+        min_samples=min_samples,
+        trim=cut,
+        threshold=threshold,
+        factor=factor_value,
+        segment=log.segment,
+    )
+    if not detection.segments:
+        unit = f"{min_samples / hz:g} s" if hz else f"{min_samples} samples"
+        if _turns_slowly(log, hz, None):
             raise InputError(
-                f"{log.path}: no still interval of at least {unit} found (threshold "
-                f"{detection.threshold_std:.3g} per-axis std); try --still-threshold "
-                f"{3 * detection.threshold_std:.3g} or a shorter --min-still, or label poses with "
-                "--pose-col"
+                f"{log.path}: no still interval of at least {unit} found: the log turns slowly "
+                "without rests; use --poses windows"
             )
-        groups = [s.rows for s in detection.segments]
-        for s in detection.segments:
-            entry: PoseEntry = {
-                "start": int(log.index[s.start]),
-                "stop": int(log.index[s.stop - 1]) + 1,
-            }
-            if s.pieces:  # runs of one pose merged across a short disturbance, left out
-                entry["pieces"] = [
-                    [int(log.index[a]), int(log.index[b - 1]) + 1] for a, b in s.pieces
-                ]
-            entries.append(entry)
-    for entry, rows in zip(entries, groups, strict=True):
-        entry["samples"] = len(rows)
-        entry["std"] = _std(ref[rows])
-    poses = PoseSet(
-        accel=None if log.accel is None else [log.accel[r] for r in groups],
-        mag=None if log.mag is None else [log.mag[r] for r in groups],
+        raise InputError(
+            f"{log.path}: no still interval of at least {unit} found (threshold "
+            f"{detection.threshold_std:.3g} per-axis std); try --still-threshold "
+            f"{3 * detection.threshold_std:.3g} or a shorter --min-still, or label poses with "
+            "--pose-col"
+        )
+    sensor = "accel" if log.accel is not None else "mag"
+    drift = _still_drift(ref, sensor, detection.segments)
+    if drift is not None and drift > REST_DRIFT:
+        what = "|g|" if sensor == "accel" else "the field"
+        advice = (
+            "use --poses windows"
+            if _turns_slowly(log, hz, None)
+            else "hold the device still in each pose, or turn slowly and use --poses windows"
+        )
+        warnings.warn(
+            f"{log.path}: the still intervals found move: their mean turns {drift:.1%} of "
+            f"{what} across an interval (median; rests stay under {REST_DRIFT:.1%}), so the "
+            f"log seems to turn without rests and its poses are means of moving readings; "
+            f"{advice}",
+            UserWarning,
+            stacklevel=2,
+        )
+    entries: list[PoseEntry] = []
+    groups: list[Rows | slice] = []
+    for s in detection.segments:
+        entry: PoseEntry = {
+            "start": int(log.index[s.start]),
+            "stop": int(log.index[s.stop - 1]) + 1,
+        }
+        if s.pieces:  # runs of one pose merged across a short disturbance, left out
+            entry["pieces"] = [[int(log.index[a]), int(log.index[b - 1]) + 1] for a, b in s.pieces]
+            groups.append(s.rows)
+        else:
+            groups.append(slice(s.start, s.stop))  # a view, not a copy
+        entry["samples"] = s.samples
+        entry["std"] = _std(ref[groups[-1]])
+        entries.append(entry)
+    found = PoseSet(
+        accel=None if log.accel is None else [log.accel[g] for g in groups],
+        mag=None if log.mag is None else [log.mag[g] for g in groups],
         entries=entries,
         detection=detection,
         rate=hz,
+        source="still",
     )
-    # revisits of one orientation (e.g. before and after a rotation) share a label
-    for entry, label in zip(entries, poses_orientations(poses), strict=True):
-        entry["orientation"] = int(label)
-    return poses
+    # the detection's means are the checked sensor's (accelerometer, else magnetometer)
+    _orient(found, [np.array([s.mean for s in detection.segments]), *_other_means(log, groups)])
+    return found
+
+
+def _other_means(log: Log, groups: list[Rows | slice]) -> list[Array]:
+    """Pose means of the magnetometer beside an accelerometer (still detection ran on the
+    accelerometer and gives its means)."""
+    if log.accel is None or log.mag is None:
+        return []
+    return [np.array([log.mag[g].mean(axis=0) for g in groups])]
+
+
+def _orient(found: PoseSet, means: list[Array]) -> None:
+    """Each entry's orientation label from the pose means of each sensor."""
+    labels = orientation_labels([_unit_directions(m) for m in means])
+    for entry, label in zip(found.entries, labels.tolist(), strict=True):
+        entry["orientation"] = label
+
+
+def _by_column(log: Log, hz: float | None) -> PoseSet:
+    """Poses grouped by the pose column: one gathered copy per sensor, split into views, and
+    the statistics of every pose at once (linear in the rows, whatever the number of labels)."""
+    rows, counts, labels = _grouped(log)
+    ends = np.cumsum(counts)
+    # each label's rows are in increasing order: its first and last rows bound it
+    first_rows, lasts = rows[ends - counts], rows[ends - 1]
+    samples: dict[str, list[Array]] = {}
+    means: list[Array] = []
+    std: list[float | None] = []
+    for name in ("accel", "mag"):
+        x = getattr(log, name)
+        if x is None:
+            continue
+        gathered = x[rows]
+        samples[name] = np.split(gathered, ends[:-1])
+        scale = power_of_two(gathered)
+        mean, var, count = _run_stats(gathered / scale, ends - counts, ends)
+        means.append(mean * scale)
+        if not std:  # the spread of the first sensor (accelerometer, else magnetometer)
+            std = _rms_std(var, count, scale)
+    entries: list[PoseEntry] = [
+        {
+            "label": text,
+            "start": int(log.index[a]),
+            "stop": int(log.index[b]) + 1,
+            "samples": int(c),
+            "std": s,
+        }
+        for text, a, b, c, s in zip(
+            labels, first_rows.tolist(), lasts.tolist(), counts.tolist(), std, strict=True
+        )
+    ]
+    found = PoseSet(
+        accel=samples.get("accel"),
+        mag=samples.get("mag"),
+        entries=entries,
+        detection=None,
+        rate=hz,
+        source="column",
+    )
+    _orient(found, means)
+    return found
+
+
+def _windows(log: Log, hz: float | None, window: float | None) -> PoseSet:
+    """Consecutive windows of a slowly turning log, each one pose (motion checked first)."""
+    motion, starts, stops = _measure(log, hz, window)
+    if motion.cut.motion > MOTION_LIMIT:
+        raise _too_fast(log, motion.cut)
+    std = _rms_std(motion.var / motion.scale**2, motion.counts, motion.scale)
+    first, last = log.index[starts], log.index[stops - 1] + 1
+    entries: list[PoseEntry] = [
+        {"start": a, "stop": b, "samples": c, "std": s}
+        for a, b, c, s in zip(
+            first.tolist(), last.tolist(), (stops - starts).tolist(), std, strict=True
+        )
+    ]
+    spans = list(zip(starts.tolist(), stops.tolist(), strict=True))
+    found = PoseSet(
+        accel=None if log.accel is None else [log.accel[a:b] for a, b in spans],
+        mag=None if log.mag is None else [log.mag[a:b] for a, b in spans],
+        entries=entries,
+        detection=None,
+        rate=hz,
+        source="windows",
+        windows=motion.cut,
+    )
+    means = [motion.means]
+    if log.accel is not None and log.mag is not None:  # the motion was measured on the accel
+        scale = power_of_two(log.mag)
+        means.append(_run_stats(log.mag / scale, starts, stops)[0] * scale)
+    _orient(found, means)
+    return found
 
 
 def poses_orientations(poses: PoseSet) -> NDArray[np.int64]:
@@ -268,29 +708,43 @@ def orientation_labels(directions: list[Array], tol_deg: float = 3.0) -> NDArray
     Greedy in the order of the poses: the first pose not yet labelled takes every later
     unlabelled pose within ``tol_deg`` of it. Candidates come from a grid of cells as wide as
     the chord of ``tol_deg`` over the first sensor's directions (the 27 cells around a pose
-    hold every direction within the tolerance), so N poses take O(N) work, not an N x N table.
+    hold every direction within the tolerance), so N poses take O(N log N) work, not an N x N
+    table: the cells are numbered so that the three cells stacked along z are consecutive,
+    and each pose's 27 neighbours are 9 ranges of the poses sorted by cell, found for all
+    poses at once; a pose alone in its neighbourhood takes its label without a numpy call.
     """
     n = len(directions[0])
+    label = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return label
     cos_tol = np.cos(np.radians(tol_deg))
     chord = 2.0 * np.sin(np.radians(tol_deg) / 2.0)
     cells = np.floor(directions[0] / chord).astype(np.int64)
-    members: dict[tuple[int, int, int], list[int]] = {}
-    for i, cell in enumerate(map(tuple, cells.tolist())):
-        members.setdefault(cell, []).append(i)
-    offsets = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
-    label = np.full(n, -1, dtype=np.int64)
+    cells -= cells.min(axis=0) - 1  # every neighbouring cell's index is >= 0 ...
+    size = cells.max(axis=0) + 2  # ... and < size
+    key = (cells[:, 0] * size[1] + cells[:, 1]) * size[2] + cells[:, 2]
+    order = np.argsort(key, kind="stable")
+    ordered = key[order]
+    lo = np.empty((n, 9), dtype=np.int64)
+    hi = np.empty((n, 9), dtype=np.int64)
+    for m, (a, b) in enumerate((a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)):
+        base = key + (a * size[1] + b) * size[2]
+        lo[:, m] = np.searchsorted(ordered, base - 1, side="left")
+        hi[:, m] = np.searchsorted(ordered, base + 1, side="right")
+    alone = ((hi - lo).sum(axis=1) == 1).tolist()
+    lows, highs = lo.tolist(), hi.tolist()
     count = 0
     for i in range(n):  # a loop over leaders; each compares against its neighbourhood at once
         if label[i] >= 0:
             continue
-        x, y, z = cells[i]
-        near = [members.get((x + a, y + b, z + c), ()) for a, b, c in offsets]
-        candidates = np.fromiter((j for cell in near for j in cell), dtype=np.int64)
-        candidates = candidates[label[candidates] < 0]
-        same = np.ones(len(candidates), dtype=bool)
-        for d in directions:
-            same &= d[candidates] @ d[i] > cos_tol
-        label[candidates[same]] = count
+        if not alone[i]:
+            ranges = [order[a:b] for a, b in zip(lows[i], highs[i], strict=True) if b > a]
+            candidates = np.concatenate(ranges)
+            candidates = candidates[label[candidates] < 0]
+            same = np.ones(len(candidates), dtype=bool)
+            for d in directions:
+                same &= d[candidates] @ d[i] > cos_tol
+            label[candidates[same]] = count
         label[i] = count
         count += 1
     return label

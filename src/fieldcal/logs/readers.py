@@ -1,7 +1,9 @@
-"""Reading log tables: CSV (with a header), NPZ and Parquet, chosen by suffix.
+"""Reading log tables: delimited text (with a header), NPZ and Parquet, chosen by suffix.
 
-:data:`READERS` maps a file suffix to its reader; anything else is read as delimited text. Each
-reader returns a :class:`Table` of numeric (float) and text columns; every problem is an
+:data:`READERS` maps a file suffix to its reader; anything else is read as delimited text
+(:mod:`fieldcal.logs.text`: CSV, TSV or blank separated, a preamble or a ``#`` header, decimal
+commas; a fast path with numpy's C parser, the careful reader where it gives up). Each reader
+returns a :class:`Table` of numeric (float) and text columns; every problem is an
 :class:`~fieldcal.errors.InputError` naming the row, the column and the fix. Only regular files
 are read: a pipe, a device or a folder is refused before it is opened (a FIFO would block, a
 device never end). pyarrow (Parquet) loads only when a Parquet file is read.
@@ -9,237 +11,21 @@ device never end). pyarrow (Parquet) loads only when a Parquet file is read.
 
 from __future__ import annotations
 
-import csv
 import os
 import stat
 import zipfile
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
+from .text import LONGEST_FIELD, Table, _check_header, read_text, to_float
 
-__all__ = ["READERS", "Table", "read_table", "regular_file", "to_float"]
+__all__ = ["LONGEST_FIELD", "READERS", "Table", "read_table", "regular_file", "to_float"]
 
 Array = NDArray[np.float64]
-
-
-@dataclass
-class Table:
-    """Columns of a log as read: numeric columns as float arrays, others as string arrays."""
-
-    path: str
-    names: list[str]
-    columns: dict[str, NDArray[np.generic]]
-
-    @property
-    def n_rows(self) -> int:
-        return 0 if not self.names else len(self.columns[self.names[0]])
-
-    def numeric(self, name: str) -> Array:
-        """Column ``name`` as floats; a one-line error naming the first non-numeric value."""
-        values = self.columns[name]
-        kind = values.dtype.kind
-        if kind == "f":  # float16/32 from .npz or .parquet too
-            return values.astype(np.float64, copy=False)
-        if kind in "iu":
-            return values.astype(float)
-        what = _NOT_READINGS.get(kind)
-        if what is not None:
-            raise InputError(
-                f"{self.path}: column {name!r} holds {what}, not numbers; give readings as "
-                "real numbers (or choose other columns)"
-            )
-        return to_float(values, name, self.path)
-
-
-#: dtype kinds that are not readings, and what to call them.
-_NOT_READINGS = {
-    "b": "true/false values",
-    "c": "complex numbers (take the real part if the imaginary parts are zero)",
-    "M": "dates and times",
-    "m": "time spans",
-    "V": "records",
-}
-
-
-def to_float(values: NDArray[np.generic], name: str, path: str, first_row: int = 0) -> Array:
-    try:
-        text = np.char.strip(values.astype(str))
-    except UnicodeDecodeError:
-        raise InputError(
-            f"{path}: column {name!r} holds bytes that are not text; give readings as numbers"
-        ) from None
-    text = np.where(text == "", "nan", text)  # an empty field is a missing value, not text
-    try:
-        return text.astype(float)
-    except ValueError:
-        bad = next(i for i, v in enumerate(text) if not _is_number(v))
-        raise InputError(
-            f"{path}: column {name!r} has a non-numeric value {_short(str(text[bad]))} at data "
-            f"row {first_row + bad + 1}; fix or remove that row (or choose other columns)"
-        ) from None
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _sniff_delimiter(header: str) -> str | None:
-    for delimiter in (",", ";", "\t"):
-        if delimiter in header:
-            return delimiter
-    return None  # whitespace-separated
-
-
-def _data_lines(handle: TextIO) -> Iterator[str]:
-    """Lines that are not blank and not ``#`` comments (loggers often write banners)."""
-    for line in handle:
-        if line.strip() and not line.lstrip().startswith("#"):
-            yield line
-
-
-def _split(
-    lines: Sequence[str], delimiter: str | None, path: str = "", first_row: int = 0
-) -> list[list[str]]:
-    """Fields of each line; a line the csv module cannot split (a field over its limit of
-    131,072 characters) is an :class:`InputError` naming the row. ``first_row`` is the data-row
-    number of ``lines[0]`` (0: it is the header line)."""
-    if delimiter is None:
-        return [line.split() for line in lines]
-    reader = csv.reader(lines, delimiter=delimiter)
-    try:
-        return list(reader)
-    except csv.Error as exc:
-        where = f"{path}: " if path else ""
-        row = first_row + reader.line_num - 1
-        line = f"data row {row}" if row > 0 else "the header line"
-        raise InputError(
-            f"{where}cannot split {line} into fields ({exc}); a sensor log has short numeric "
-            "fields: fix that line (an unmatched quote?) or cut it"
-        ) from None
-
-
-def _short(text: str, limit: int = 60) -> str:
-    return repr(text if len(text) <= limit else text[:limit] + "...")
-
-
-def _names(names: Sequence[str], limit: int = 12) -> str:
-    """Column names for a message, the list cut after ``limit``."""
-    shown = ", ".join(_short(n, 30)[1:-1] for n in names[:limit])
-    return shown + (f" ... ({len(names)} columns)" if len(names) > limit else "")
-
-
-#: Longest field of a CSV log: readings and labels are short, and numpy's text arrays would
-#: make every cell as wide as the widest one.
-LONGEST_FIELD = 1000
-
-
-def _check_lengths(path: Path, lines: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
-    """Refuse a field longer than :data:`LONGEST_FIELD` characters, naming its row."""
-    for i, line in enumerate(lines):
-        if len(line) > LONGEST_FIELD:
-            long = [len(f) for f in rows[i] if len(f) > LONGEST_FIELD]
-            if long:
-                where = f"data row {i}" if i else "the header line"
-                raise InputError(
-                    f"{path}: {where} has a field of {long[0]:,} characters; a sensor log has "
-                    "short fields: fix that line (an unmatched quote?) or cut it"
-                )
-
-
-def _check_header(path: Path, header: list[str]) -> None:
-    seen: dict[str, int] = {}
-    for j, name in enumerate(header):
-        if name in seen:
-            label = f"column name {_short(name)}" if name else "an empty column name"
-            raise InputError(
-                f"{path}: {label} appears twice (columns {seen[name] + 1} and {j + 1}); give "
-                "every column its own name"
-            )
-        seen[name] = j
-
-
-def _ragged(path: Path, header: list[str], widths: NDArray[np.int64], first: str) -> InputError:
-    ragged = np.flatnonzero(widths != len(header))
-    i = int(ragged[0])
-    common = int(np.bincount(widths).argmax())
-    if ragged.size > widths.size // 2 and common != len(header):
-        # most rows disagree with the first line: it is not the header (a logger's preamble)
-        return InputError(
-            f"{path}: the header line {_short(first)} has {len(header)} field(s) but the data "
-            f"rows have {common}; delete the lines above the header (or start them with #)"
-        )
-    return InputError(
-        f"{path}: data row {i + 1} has {widths[i]} fields but the header has {len(header)}; "
-        f"fix the row ({ragged.size} such row(s)) or cut the file"
-    )
-
-
-def _read_csv(path: Path) -> Table:
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
-            lines = list(_data_lines(handle))
-    except UnicodeDecodeError:
-        raise InputError(
-            f"{path}: not a text file; give a CSV with a header line (or .npz / .parquet)"
-        ) from None
-    if not lines:
-        raise InputError(f"{path}: the file is empty; give a CSV with a header line and data rows")
-    delimiter = _sniff_delimiter(lines[0])
-    below = {_sniff_delimiter(line) for line in lines[1:6]}
-    if delimiter is None and len(below) == 1 and None not in below:
-        # a logger's preamble above the header ("Logger v2", "Date: ...")
-        raise InputError(
-            f"{path}: the first line {_short(lines[0].strip())} is not a header (the lines below "
-            f"are separated by {below.pop()!r}); delete the lines above the header (or start "
-            "them with #)"
-        )
-    rows = _split(lines, delimiter, str(path))
-    if len(rows) == len(lines):  # (a quoted field across lines would shift the numbering)
-        _check_lengths(path, lines, rows)
-    elif any(len(f) > LONGEST_FIELD for r in rows for f in r):
-        raise InputError(
-            f"{path}: a field is longer than {LONGEST_FIELD:,} characters (an unmatched quote "
-            "joins lines); fix the quoting or cut the file"
-        )
-    header = [h.strip() for h in rows[0]]
-    if all(_is_number(h) for h in header):
-        raise InputError(
-            f"{path}: the first line is numbers, not a header; add a header line naming the "
-            "columns, e.g. 't,ax,ay,az,mx,my,mz'"
-        )
-    _check_header(path, header)
-    body = rows[1:]
-    if not body:
-        raise InputError(f"{path}: the file has a header but no data rows")
-    widths = np.fromiter((len(r) for r in body), dtype=np.int64, count=len(body))
-    if np.any(widths != len(header)):
-        raise _ragged(path, header, widths, lines[0].strip())
-    columns: dict[str, NDArray[np.generic]] = {}
-    # column by column: a text array is as wide as its longest cell, so one long cell widens
-    # its own column only
-    for name, cells in zip(header, zip(*body, strict=True), strict=True):
-        try:
-            columns[name] = np.array(cells, dtype=float)  # float() takes surrounding blanks
-            continue
-        except ValueError:
-            pass
-        column = np.char.strip(np.array(cells, dtype=str))
-        filled = np.where(column == "", "nan", column)
-        try:
-            columns[name] = filled.astype(float)
-        except ValueError:
-            columns[name] = column  # text (labels, device names); checked when used
-    return Table(str(path), header, columns)
 
 
 _NPZ_FIX = "save the arrays with numpy.savez, e.g. accel=(n, 3), mag=(n, 3), t=(n,)"
@@ -344,11 +130,42 @@ def regular_file(path: str | Path) -> Path:
     return path
 
 
-def read_table(path: str | Path) -> Table:
-    """Read a CSV (header line, ``,`` ``;`` tab or blank separated), ``.npz`` or ``.parquet``."""
+def read_table(
+    path: str | Path,
+    *,
+    decimal: str | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> Table:
+    """Read a log: delimited text (any suffix but those in :data:`READERS`), ``.npz`` or
+    ``.parquet``.
+
+    Parameters
+    ----------
+    path : str or Path
+    decimal : {None, ".", ","}
+        Text logs only: the decimal mark. None reads points, and decimal commas when the
+        columns are separated by ``;`` or tabs and the numbers are written ``0,123`` (never
+        ``0.123``); ``","`` reads commas in ``;``, tab or blank separated columns.
+    on_progress : callable, optional
+        Text logs only: told ``"reading <name>: <rows> rows"`` about every million rows and at
+        the end.
+
+    Returns
+    -------
+    Table
+        ``notes`` says what was done that the user may want to know (preamble lines skipped,
+        the header taken from a ``#`` line, decimal commas read as points).
+
+    Raises
+    ------
+    InputError
+        One line: the file, the row and column where it applies, what was found, the fix.
+    """
     path = regular_file(path)
-    reader = READERS.get(path.suffix.lower(), _read_csv)
+    reader = READERS.get(path.suffix.lower())
     try:
+        if reader is None:
+            return read_text(path, decimal=decimal, on_progress=on_progress)
         return reader(path)
     except InputError:
         raise

@@ -20,6 +20,10 @@ result is the same in any unit, 1e-30 or 1e30:
 5. Adjacent intervals of one pose are merged: a short gap (at most ``max_gap`` samples, e.g.
    a tap on the table) between intervals whose mean readings agree within ``merge_sigma``
    per-sample noise standard deviations; the gap's samples are left out.
+
+A log split at resets of its clock (``segment``, e.g. ``Log.segment``) is detected as one, with
+one noise floor, but every moving window stops at a segment's boundary as it stops at the log's
+ends, and no run or merge crosses one.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -91,35 +96,98 @@ class StillResult:
         }
 
 
-def _windows(n: int, window: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def _bounds(n: int, segment: NDArray[np.integer[Any]] | None) -> NDArray[np.int64]:
+    """First rows of the segments after the first (where ``segment`` changes); empty for one."""
+    if segment is None:
+        return np.empty(0, dtype=np.int64)
+    return np.flatnonzero(segment[1:] != segment[:-1]) + 1
+
+
+def _windows(
+    n: int, window: int, breaks: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]] | None:
+    """Each row's centred window [lo, hi), truncated at the log's ends and at ``breaks`` (the
+    first rows of segments); ``None`` when no window is truncated but at the log's ends (the
+    sums then come from slices, without index arrays)."""
+    if breaks.size == 0:
+        return None
     half = window // 2
     centre = np.arange(n)
-    return np.clip(centre - half, 0, n), np.clip(centre + half + 1, 0, n)
+    edges = np.concatenate([[0], breaks, [n]])
+    piece = np.searchsorted(breaks, centre, side="right")
+    lo = np.maximum(centre - half, edges[piece])
+    hi = np.minimum(centre + half + 1, edges[piece + 1])
+    return lo, hi
 
 
-def moving_variance(x: Array, window: int) -> Array:
-    """Sum over columns of the variance in a centred window (truncated at the ends), O(n)."""
+def _cumulative(x: Array) -> Array:
+    """Cumulative sums along the rows with a leading row of zeros (``c[b] - c[a]`` sums a:b)."""
+    out = np.empty((len(x) + 1, *x.shape[1:]))
+    out[0] = 0.0
+    np.cumsum(x, axis=0, out=out[1:])
+    return out
+
+
+def _window_sums(
+    c: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None
+) -> tuple[Array, Array]:
+    """Sums over each row's window from cumulative sums ``c`` (n + 1 rows), and the counts.
+
+    Without ``bounds`` the window is centred and truncated at the log's ends: the middle rows
+    are one subtraction of two slices, no gathered copies.
+    """
+    n = len(c) - 1
+    if bounds is not None:
+        lo, hi = bounds
+        count = (hi - lo).astype(float)
+        return c[hi] - c[lo], count
+    half = window // 2
+    a, b = min(half, n), max(min(half, n), n - half)  # rows a..b-1 have full windows
+    ends = np.concatenate([np.arange(a), np.arange(b, n)])
+    lo, hi = np.clip(ends - half, 0, n), np.clip(ends + half + 1, 0, n)
+    sums = np.empty((n, *c.shape[1:]))
+    np.subtract(c[a + half + 1 : b + half + 1], c[a - half : b - half], out=sums[a:b])
+    sums[ends] = c[hi] - c[lo]
+    count = np.full(n, float(2 * half + 1))
+    count[ends] = hi - lo
+    return sums, count
+
+
+def moving_variance(
+    x: Array, window: int, segment: NDArray[np.integer[Any]] | None = None
+) -> Array:
+    """Sum over columns of the variance in a centred window (truncated at the ends and, when
+    ``segment`` is given, where it changes), O(n)."""
     x = np.asarray(x, dtype=float)
+    return _moving_variance(x, window, _windows(len(x), window, _bounds(len(x), segment)))
+
+
+def _moving_variance(
+    x: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None
+) -> Array:
     x = x - x.mean(axis=0)  # centring keeps the cumulative sums from losing precision
-    lo, hi = _windows(len(x), window)
-    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x * x, axis=0)])
-    count = (hi - lo)[:, None]
-    mean = (c1[hi] - c1[lo]) / count
-    var = (c2[hi] - c2[lo]) / count - mean**2
-    return np.maximum(var, 0.0).sum(axis=1)
+    s1, count = _window_sums(_cumulative(x), window, bounds)
+    s2, _ = _window_sums(_cumulative(x * x), window, bounds)
+    mean = s1 / count[:, None]
+    var = s2 / count[:, None] - mean**2
+    np.maximum(var, 0.0, out=var)
+    if var.shape[1] == 3:  # as .sum(axis=1) (same order), without a strided reduction
+        return var[:, 0] + var[:, 1] + var[:, 2]
+    return var.sum(axis=1)
 
 
-def _moving_mean(x: Array, window: int) -> Array:
-    lo, hi = _windows(len(x), window)
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    return (c[hi] - c[lo]) / (hi - lo)
+def _moving_mean(
+    x: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
+) -> Array:
+    sums, count = _window_sums(_cumulative(x), window, bounds)
+    return sums / count
 
 
 def power_of_two(x: Array) -> float:
     """The power of two nearest the largest ``|x|`` (1 for zeros): dividing by it changes no
     digit, and the readings become of order one."""
-    largest = float(np.max(np.abs(x), initial=0.0))
+    # the largest |x| as max(max, -min): no temporary array of |x|
+    largest = max(float(np.max(x, initial=0.0)), -float(np.min(x, initial=0.0)))
     if not (largest > 0 and math.isfinite(largest)):
         return 1.0
     return float(2.0 ** round(math.log2(largest)))
@@ -153,6 +221,19 @@ def _readings(x: object, name: str) -> Array:
     return array
 
 
+def _segments(segment: object, n: int) -> NDArray[np.int64] | None:
+    """``segment`` checked: one whole number per sample, or None."""
+    if segment is None:
+        return None
+    array = np.asarray(segment)
+    if array.dtype.kind not in "iu" or array.shape != (n,):
+        raise InputError(
+            f"segment: expected one whole number per sample ({n}), got "
+            f"{array.dtype.name} {list(array.shape)}"
+        )
+    return array.astype(np.int64, copy=False)
+
+
 def _floor(stat: Array, quantile: float, resolution: float) -> float:
     # quantised sensors can show exactly zero variance in a window; the floor is at least the
     # variance of rounding to the sensor's step (step² / 12 per axis)
@@ -160,15 +241,20 @@ def _floor(stat: Array, quantile: float, resolution: float) -> float:
 
 
 def _resolution(x: Array) -> float:
-    steps = np.abs(np.diff(x, axis=0)).ravel()
-    steps = steps[steps > 0]
-    return float(steps.min()) if steps.size else 0.0
+    steps = np.abs(np.diff(x, axis=0))
+    smallest = float(np.min(steps, where=steps > 0, initial=np.inf))
+    return smallest if math.isfinite(smallest) else 0.0
 
 
-def _runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """(k, 2) start/stop (exclusive) of the runs of True."""
+def _runs(mask: NDArray[np.bool_], breaks: NDArray[np.int64]) -> NDArray[np.int64]:
+    """(k, 2) start/stop (exclusive) of the runs of True, cut at ``breaks`` (segment starts)."""
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return np.column_stack([np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)])
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if breaks.size:
+        across = breaks[mask[breaks] & mask[breaks - 1]]  # a run across a segment's start
+        starts = np.sort(np.concatenate([starts, across]))
+        stops = np.sort(np.concatenate([stops, across]))
+    return np.column_stack([starts, stops])
 
 
 def detect_still(
@@ -183,6 +269,7 @@ def detect_still(
     floor_quantile: float = 0.1,
     max_gap: float | None = None,
     merge_sigma: float = 5.0,
+    segment: NDArray[np.integer[Any]] | None = None,
 ) -> StillResult:
     """Find the intervals in which the device rests.
 
@@ -210,6 +297,9 @@ def detect_still(
     merge_sigma : float
         Two intervals are one pose when their means differ by less than this many per-sample
         noise standard deviations.
+    segment : (n,) array of int, optional
+        Segment of each sample (e.g. ``Log.segment``, the log split at resets of its clock):
+        no moving window, still interval or merge spans a change of segment.
 
     Numbers of samples may be given as floats (rounded); every parameter is checked (finite,
     in range) with a one-line :class:`~fieldcal.errors.InputError`.
@@ -233,12 +323,14 @@ def detect_still(
             f"the log has {n} samples, fewer than one detection window "
             f"({max(window, length):.6g}); record longer or give a shorter window"
         )
+    breaks = _bounds(n, _segments(segment, n))
+    bounds = _windows(n, window, breaks)
     # readings of order one in any unit: every statistic below is in these scaled units
     scale = power_of_two(raw)
     accel = raw / scale
 
     with np.errstate(over="ignore", under="ignore"):  # a threshold beyond range is refused below
-        var_a = moving_variance(accel, window)
+        var_a = _moving_variance(accel, window, bounds)
         floor_a = _floor(var_a, floor_quantile, _resolution(accel))
         thr_a = np.float64(factor) ** 2 * floor_a
         if threshold is not None:
@@ -257,19 +349,22 @@ def detect_still(
         rates = rates / power_of_two(rates)
         # the gyro's bias is its median over the samples the accelerometer calls still
         bias = np.median(rates[still], axis=0) if np.any(still) else np.median(rates, axis=0)
-        energy = _moving_mean(np.sum((rates - bias) ** 2, axis=1), window)
+        energy = _moving_mean(np.sum((rates - bias) ** 2, axis=1), window, bounds)
         floor_g = _floor(energy, floor_quantile, _resolution(rates))
         with np.errstate(over="ignore"):
             still &= energy < np.float64(factor) ** 2 * floor_g
 
-    runs = _runs(still)
+    runs = _runs(still, breaks)
     runs[:, 0] += trim
     runs[:, 1] -= trim
     runs = runs[runs[:, 1] - runs[:, 0] >= max(1, min(min_samples, 3))]
+    sums = _sums(accel) if len(runs) else None
     # quiet windows can still drift slowly (a slow turn): such a run is cut into pieces of
     # min_samples and only the pieces that are still as a whole are kept
-    runs = _split_drifting(accel, runs, thr_a, max(min_samples, window))
-    groups = _merge(accel, runs, max_gap, merge_sigma * np.sqrt(floor_a / 3.0), thr_a)
+    runs = _split_drifting(sums, runs, thr_a, max(min_samples, window))
+    piece = np.searchsorted(breaks, runs[:, 0], side="right")  # each run's segment
+    tol = merge_sigma * np.sqrt(floor_a / 3.0)
+    groups = _merge(accel, sums, runs, piece, max_gap, tol, thr_a)
     segments = [
         s for s in (_segment(accel, runs[g], scale) for g in groups) if s.samples >= min_samples
     ]
@@ -292,17 +387,17 @@ def _var(c1: Array, c2: Array, runs: NDArray[np.int64]) -> tuple[Array, Array]:
 
 
 def _sums(accel: Array) -> tuple[Array, Array]:
+    """Cumulative sums of the centred readings and of their squares (computed once)."""
     x = accel - accel.mean(axis=0)
-    zero = np.zeros((1, 3))
-    return np.concatenate([zero, np.cumsum(x, axis=0)]), np.concatenate([zero, np.cumsum(x * x, 0)])
+    return _cumulative(x), _cumulative(x * x)
 
 
 def _split_drifting(
-    accel: Array, runs: NDArray[np.int64], threshold: float, length: int
+    sums: tuple[Array, Array] | None, runs: NDArray[np.int64], threshold: float, length: int
 ) -> NDArray[np.int64]:
-    if len(runs) == 0:
+    if len(runs) == 0 or sums is None:
         return runs
-    c1, c2 = _sums(accel)
+    c1, c2 = sums
     _, var = _var(c1, c2, runs)
     pieces = [runs[var < threshold]]
     for a, b in runs[var >= threshold]:  # a loop over runs, not samples
@@ -317,25 +412,35 @@ def _split_drifting(
 
 
 def _merge(
-    accel: Array, runs: NDArray[np.int64], max_gap: int, tol: float, threshold: float
+    accel: Array,
+    sums: tuple[Array, Array] | None,
+    runs: NDArray[np.int64],
+    piece: NDArray[np.int64],
+    max_gap: int,
+    tol: float,
+    threshold: float,
 ) -> list[NDArray[np.int64]]:
-    """Group consecutive runs separated by a short gap and agreeing in their mean reading.
+    """Group consecutive runs of one segment (``piece``) separated by a short gap and agreeing
+    in their mean reading.
 
     A group whose pooled samples are not still as a whole (slow drift across the pieces) falls
     back to its pieces.
     """
-    if len(runs) == 0:
+    if len(runs) == 0 or sums is None:
         return []
-    c1, c2 = _sums(accel)
-    means, _ = _var(c1, c2, runs)
+    means, _ = _var(*sums, runs)
     gap = runs[1:, 0] - runs[:-1, 1]
     same = (gap <= max_gap) & (np.linalg.norm(np.diff(means, axis=0), axis=1) < tol)
+    same &= piece[1:] == piece[:-1]
     starts = np.flatnonzero(np.concatenate([[True], ~same]))
     groups = np.split(np.arange(len(runs)), starts[1:])
     out: list[NDArray[np.int64]] = []
     for group in groups:
+        if len(group) == 1:  # most groups: nothing pooled, nothing to check
+            out.append(group)
+            continue
         rows = np.concatenate([np.arange(a, b) for a, b in runs[group]])
-        if len(group) > 1 and accel[rows].var(axis=0).sum() >= threshold:
+        if accel[rows].var(axis=0).sum() >= threshold:
             out.extend(g[None] for g in group)
         else:
             out.append(group)
@@ -345,8 +450,10 @@ def _merge(
 def _segment(accel: Array, runs: NDArray[np.int64], scale: float) -> Segment:
     """The segment of ``runs`` in the readings' units (``accel`` is divided by ``scale``)."""
     pieces = tuple((int(a), int(b)) for a, b in runs)
-    rows = np.concatenate([np.arange(a, b) for a, b in pieces])
-    part = accel[rows]
+    if len(pieces) == 1:
+        part = accel[pieces[0][0] : pieces[0][1]]  # a view: one run needs no gathered copy
+    else:
+        part = accel[np.concatenate([np.arange(a, b) for a, b in pieces])]
     std = float(np.sqrt(np.mean(part.var(axis=0)))) * scale
     mean = part.mean(axis=0) * scale
     return Segment(

@@ -57,6 +57,9 @@ class Method:
         Whether the fit weighs each pose mean by its own covariance ``Σ/Δ_i + Q`` (then the
         pose-level noise is estimated jointly, refitting; otherwise it is estimated at the
         method's result).
+    raw_samples : bool
+        Whether ``fit`` reads the raw samples (``raw_accel``, ``raw_mag``); when not, they
+        are passed as ``None`` and :func:`fieldcal.calibrate` makes no scaled copy of them.
     """
 
     name: str
@@ -67,6 +70,7 @@ class Method:
     continuous: bool = False
     warm_start: bool = False
     pose_weights: bool = False
+    raw_samples: bool = True
 
     def load(self) -> Callable[..., Calibration]:
         """The method's ``fit`` function (imports its module)."""
@@ -109,6 +113,7 @@ METHODS: dict[str, Method] = {
             min_poses_single=10,
             warm_start=True,
             pose_weights=True,
+            raw_samples=False,
         ),
         Method(
             "greedy",
@@ -116,6 +121,7 @@ METHODS: dict[str, Method] = {
             "the seed paper's greedy algorithm (Miranda & Ferreira, Sec. 5), as published",
             min_poses=8,
             min_poses_single=None,
+            raw_samples=False,
         ),
         Method(
             "ellipsoid",

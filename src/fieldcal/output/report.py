@@ -46,7 +46,7 @@ import base64
 import html
 import io as _io
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -624,7 +624,12 @@ FIGURES = tuple(_TITLES)
 
 
 def write_report(
-    cal: Calibration, log: Log, output: str | Path, *, png_dir: str | Path | None = None
+    cal: Calibration,
+    log: Log,
+    output: str | Path,
+    *,
+    png_dir: str | Path | None = None,
+    on_progress: Callable[[str], None] | None = None,
 ) -> None:
     """Write the HTML report of ``cal`` on the log it was made from.
 
@@ -640,6 +645,8 @@ def write_report(
     png_dir : str or Path, optional
         Also write each figure there as ``<name>.png`` (``timeline``, ``residuals``,
         ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``: :data:`FIGURES`).
+    on_progress : callable, optional
+        Called with one line of text as each figure is drawn (a large log takes seconds).
 
     Every file is written atomically (a temporary file renamed into place), the PNGs first,
     then the page.
@@ -703,7 +710,9 @@ def write_report(
     if png_dir is not None:
         Path(png_dir).mkdir(parents=True, exist_ok=True)
     sections = []
-    for key, fig in figures.items():
+    for k, (key, fig) in enumerate(figures.items()):
+        if on_progress is not None:
+            on_progress(f"report: drawing {_TITLES[key].lower()} ({k + 1} of {len(figures)})")
         buffer = _io.BytesIO()
         fig.savefig(buffer, format="png", dpi=_DPI)
         if png_dir is not None:

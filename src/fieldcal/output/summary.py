@@ -261,6 +261,13 @@ def print_summary(
             f"threshold {still['threshold_std']:.3g} per-axis std "
             f"(noise floor {np.sqrt(still['noise_floor_var'] / 3):.3g})",
         )
+    windows = doc.get("pose_windows")
+    if windows:
+        _say(
+            console,
+            f"windows: {windows['count']} of {windows['window']} samples; motion inside them "
+            f"{100 * windows['motion']:.2g} % of the field (limit {100 * windows['limit']:.2g} %)",
+        )
     _print_rejected(console, cal)
     if cal.poses:
         _print_poses(console, cal.poses)

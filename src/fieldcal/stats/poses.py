@@ -7,15 +7,16 @@ one-line errors for what it may not.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._frozen import ArrayDataclass
-from .trimming import trim_unsteady
+from .trimming import unsteady
 
 __all__ = [
     "LARGEST",
@@ -26,8 +27,10 @@ __all__ = [
     "as_readings",
     "brief",
     "check_spread",
+    "power_of_two",
     "stats_from_means",
     "summarize",
+    "summarize_scaled",
 ]
 
 Array = NDArray[np.float64]
@@ -80,9 +83,11 @@ class SensorStats(ArrayDataclass):
     def mean_covariances(self) -> Array:
         """(N, 3, 3): the covariance of each pose mean, ``Σ/Δ_i + q² I``."""
         n = self.n_poses
-        total = np.broadcast_to(self.pose_var * np.eye(3), (n, 3, 3)).copy()
-        if self.cov is not None:
-            total += self.cov[None, :, :] / self.counts[:, None, None]
+        if self.cov is None:
+            total = np.zeros((n, 3, 3))
+        else:
+            total = self.cov[None, :, :] / self.counts[:, None, None]
+        total.reshape(n, 9)[:, ::4] += self.pose_var
         return total
 
     def with_pose_var(self, pose_var: float) -> SensorStats:
@@ -103,10 +108,16 @@ class SensorStats(ArrayDataclass):
 
 @dataclass(frozen=True, eq=False)
 class PoseStats(ArrayDataclass):
-    """Both sensors' summaries; either may be ``None`` for single-sensor calibration."""
+    """Both sensors' summaries; either may be ``None`` for single-sensor calibration.
+
+    ``memo`` holds what fitting code derives from these statistics once (e.g. the whitened
+    problem of :mod:`fieldcal.methods.mle`), so a fit and the evaluation of its result on the
+    same statistics do not repeat it; a replaced or subset copy starts empty.
+    """
 
     accel: SensorStats | None
     mag: SensorStats | None
+    memo: dict[object, object] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def n_poses(self) -> int:
@@ -125,8 +136,11 @@ class PoseStats(ArrayDataclass):
         return value
 
     def replace(self, **sensors: SensorStats | None) -> PoseStats:
-        """The same statistics with some sensors replaced."""
-        return dataclasses.replace(self, **sensors)
+        """The same statistics with some sensors replaced (a new object: ``memo`` empty)."""
+        unknown = sorted(set(sensors) - {"accel", "mag"})
+        if unknown:
+            raise TypeError(f"PoseStats has no sensor {unknown[0]!r}")
+        return PoseStats(sensors.get("accel", self.accel), sensors.get("mag", self.mag))
 
     def subset(self, index: ArrayLike) -> PoseStats:
         return PoseStats(
@@ -192,11 +206,14 @@ def as_pose_list(samples: object, name: str) -> list[Array]:
 
     Raises ``ValueError`` with a one-line message naming the problem and the fix.
     """
-    return _validated(samples, name)[0]
+    poses = _pose_arrays(samples, name)
+    _check_values(poses, name)
+    return poses
 
 
-def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[np.int64]]:
-    """The checked poses, their concatenation (a fresh array) and the counts Δ_i."""
+def _pose_arrays(samples: object, name: str) -> list[Array]:
+    """The poses as float (n_i, 3) arrays, their shapes and kinds checked (not their values:
+    the summary's one pass over the samples does that, :func:`_moments`)."""
     if isinstance(samples, np.ndarray) and samples.ndim == 3:
         poses = list(samples)
     elif isinstance(samples, np.ndarray) and samples.ndim == 2:
@@ -214,6 +231,16 @@ def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[
         raise ValueError(f"{name}: no poses given; pass one (n_i, 3) array per static pose")
     out = []
     for i, pose in enumerate(poses):
+        # the common case, a float (n, 3) array, needs none of as_readings' conversions
+        if (
+            type(pose) is np.ndarray
+            and pose.dtype == np.float64
+            and pose.ndim == 2
+            and pose.shape[1] == 3
+            and pose.shape[0] > 0
+        ):
+            out.append(pose)
+            continue
         array = as_readings(pose, f"{name}: pose {i}")
         if array.ndim == 1 and array.shape == (3,):
             array = array[None, :]
@@ -225,11 +252,16 @@ def _validated(samples: object, name: str) -> tuple[list[Array], Array, NDArray[
         if array.shape[0] == 0:
             raise ValueError(f"{name}: pose {i} has no samples; drop it or record it again")
         out.append(array)
-    stacked = np.concatenate(out, axis=0)
-    counts = np.array([len(a) for a in out], dtype=np.int64)
+    return out
+
+
+def _check_values(poses: list[Array], name: str) -> None:
+    """Refuse NaN, inf and readings whose squares overflow, naming where (a full scan: used
+    when the one-pass summary found something wrong, or by :func:`as_pose_list`)."""
+    counts = np.array([len(a) for a in poses], dtype=np.int64)
+    stacked = poses[0] if len(poses) == 1 else np.concatenate(poses, axis=0)
     _check_finite(stacked, counts, name)
     _check_range(stacked, counts, name)
-    return out, stacked, counts
 
 
 def _check_finite(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
@@ -261,32 +293,211 @@ def _check_range(stacked: Array, counts: NDArray[np.int64], name: str) -> None:
     )
 
 
-def _sensor_stats(stacked: Array, counts: NDArray[np.int64], trim: bool) -> SensorStats:
-    """Eq. 5 and Eq. 7 in one pass over the concatenated samples (shifted in place), after
-    cutting unsteady samples when ``trim``."""
-    trimmed = None
-    if trim:
-        stacked, counts, trimmed = trim_unsteady(stacked, counts)
-    # Shift by one reading so the scatter below is computed on numbers of the size of the
-    # signal, not of the offset: XᵀX − Σ Δ_i μ_i μ_iᵀ then loses no precision to cancellation.
-    shift = stacked[0].copy()
-    stacked -= shift
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    sums = np.add.reduceat(stacked, starts, axis=0)
-    shifted_means = sums / counts[:, None]
-    means = shifted_means + shift  # Eq. 5
+#: Samples per block of the summary: a block's two work arrays ((3, BLOCK), under 1 MB each)
+#: stay in the CPU cache and are reused, so each sample is read from memory once however many
+#: there are, and no temporary grows with the input.
+BLOCK = 1 << 15
+
+
+class _Scratch:
+    """Work arrays shared by every step of one summary (both sensors): memory a process has
+    not touched yet costs a page fault per 4 KB, more than the arithmetic on it, so the steps
+    write into these rather than into fresh temporaries."""
+
+    def __init__(self) -> None:
+        self._floats = np.empty(0)
+
+    def floats(self, rows: int, k: int) -> Array:
+        """A C-contiguous (rows, k) float array (contents undefined)."""
+        if self._floats.size < rows * k:
+            self._floats = np.empty(rows * k)
+        return self._floats[: rows * k].reshape(rows, k)
+
+
+@dataclass
+class _Moments:
+    """Sums of one sensor's samples shifted by a reading of their pose, ``x0``, in units of
+    ``unit`` (``d = (x − x0) / unit``): per pose ``Σ d`` and ``Σ d²`` (per axis), over all
+    samples ``Σ d_x d_y, Σ d_x d_z, Σ d_y d_z``; the smallest and largest reading when asked
+    for.
+
+    ``unit`` is a power of two of the size of the readings (:func:`_unit`): dividing by it
+    changes no digit, and the squares of readings in any unit, 1e-300 or 1e100, neither
+    underflow nor overflow.
+    """
+
+    x0: Array
+    sums: Array
+    squares: Array
+    cross: Array
+    unit: float = 1.0
+    extremes: tuple[float, float] | None = None
+
+    @classmethod
+    def empty(cls, x0: Array, unit: float) -> _Moments:
+        n = len(x0)
+        return cls(x0, np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), unit)
+
+    @property
+    def finite(self) -> bool:
+        """Whether every sample was finite (a NaN or inf reaches the sums of squares; an
+        overflow of the sums themselves is reported as non-finite too, and rechecked)."""
+        return bool(np.isfinite(self.squares).all() and np.isfinite(self.sums).all())
+
+    def bound(self) -> float:
+        """An upper bound of ``|x|``: ``|x0| + unit · sqrt(Σ d²)`` per pose and axis."""
+        return float(np.max(np.abs(self.x0) + self.unit * np.sqrt(self.squares)))
+
+    def add(
+        self,
+        x: Array,
+        ids: NDArray[np.intp],
+        rows: NDArray[np.int64],
+        work: Array,
+    ) -> None:
+        """Add a block: ``x`` (3, k) holds the consecutive poses ``ids`` (``rows`` samples
+        each) and is overwritten; ``work`` is a (3, ≥ k) scratch array.
+
+        Shifting each pose by its own first sample keeps the sums of squares of the size of
+        the noise, so Eq. 7's ``Σ d dᵀ − Δ d̄ d̄ᵀ`` loses nothing to cancellation whatever
+        the offset. Axes as rows: every reduction runs over contiguous memory.
+        """
+        k = x.shape[1]
+        shift = self.x0[ids].T
+        d = np.subtract(x, shift if len(ids) == 1 else np.repeat(shift, rows, axis=1), out=x)
+        if self.unit != 1.0:
+            d /= self.unit  # exact: a power of two (its reciprocal may not exist, 2^-1030)
+        self.add_deviations(d, np.multiply(d, d, out=work[:, :k]), ids, rows)
+
+    def add_deviations(
+        self, d: Array, d2: Array, ids: NDArray[np.intp], rows: NDArray[np.int64]
+    ) -> None:
+        """Add a block already shifted by ``x0``: ``d`` (3, k) and its square ``d2``."""
+        starts = np.zeros(1, dtype=np.intp) if len(ids) == 1 else np.cumsum(rows) - rows
+        self.sums[ids] += np.add.reduceat(d, starts, axis=1).T
+        self.squares[ids] += np.add.reduceat(d2, starts, axis=1).T
+        self.cross += (d[0] @ d[1], d[0] @ d[2], d[1] @ d[2])
+
+
+def _unit(x: Array) -> float:
+    """A power of two of the size of the readings ``x`` (1 for zeros or non-finite ones)."""
+    return power_of_two(float(np.max(np.abs(x)))) if x.size else 1.0
+
+
+def _moments(
+    poses: Sequence[Array],
+    counts: NDArray[np.int64],
+    extremes: bool,
+    scratch: _Scratch,
+    unit: float | None = None,
+) -> _Moments:
+    """One pass over the samples (Eq. 5 and 7's sums), block by block in the cache: runs of
+    small poses copied side by side into one reused array (one call), a large pose in pieces
+    of :data:`BLOCK` samples. O(N) bookkeeping in Python, nothing per sample. Each pose is
+    shifted by its first sample; ``unit`` defaults to the size of those."""
+    first = np.array([p[0] for p in poses])
+    mo = _Moments.empty(first, _unit(first) if unit is None else unit)
+    width = min(BLOCK, int(counts.sum()))
+    work = scratch.floats(6, width)
+    block, work = work[:3], work[3:]
+    lo, hi = np.inf, -np.inf
+    group: list[int] = []
+    rows = 0
+
+    def flush() -> None:
+        nonlocal lo, hi
+        x = np.concatenate([poses[i].T for i in group], axis=1, out=block[:, :rows])
+        if extremes:
+            lo, hi = min(lo, float(x.min())), max(hi, float(x.max()))
+        ids = np.array(group, dtype=np.intp)
+        mo.add(x, ids, counts[ids], work)
+
+    for i, n in enumerate(counts.tolist()):
+        if group and rows + n > BLOCK:
+            flush()
+            group, rows = [], 0
+        if n <= BLOCK:
+            group.append(i)
+            rows += n
+            continue
+        for a in range(0, n, BLOCK):  # a large pose: pieces copied transposed, in the cache
+            part = poses[i][a : a + BLOCK]
+            x = block[:, : len(part)]
+            np.copyto(x, part.T)
+            if extremes:
+                lo, hi = min(lo, float(x.min())), max(hi, float(x.max()))
+            mo.add(x, np.array([i], dtype=np.intp), np.array([len(part)]), work)
+    if group:
+        flush()
+    if extremes:
+        mo.extremes = (lo, hi)
+    return mo
+
+
+def _from_moments(
+    mo: _Moments, counts: NDArray[np.int64], trimmed: NDArray[np.int64] | None, scale: float
+) -> SensorStats:
+    """Eq. 5 and Eq. 7 from the sums, for readings divided by ``scale`` (a power of two,
+    like the sums' unit: rescaling the results is exact)."""
+    f = mo.unit / scale
+    shifted_means = mo.sums / counts[:, None]
+    means = mo.x0 / scale + shifted_means * f  # Eq. 5
     dof = int(counts.sum() - len(counts))
     if dof <= 0:
         return SensorStats(means, counts, None, dof, trimmed=trimmed)
-    squares = np.add.reduceat(np.einsum("ij,ij->i", stacked, stacked), starts)
-    per_pose = (squares - counts * np.einsum("ij,ij->i", shifted_means, shifted_means)) / (
-        3.0 * counts
-    )
-    scatter = stacked.T @ stacked - sums.T @ shifted_means
-    cov = scatter / dof  # Eq. 7
-    return SensorStats(
-        means, counts, 0.5 * (cov + cov.T), dof, trimmed=trimmed, scatter=np.maximum(per_pose, 0)
-    )
+    within = mo.squares - mo.sums * shifted_means  # each pose's centred Σ d², per axis
+    per_pose = np.maximum(within.sum(axis=1) / (3.0 * counts), 0.0) * (f * f)
+    scatter = np.diag(within.sum(axis=0))
+    c = mo.cross - np.array(
+        [shifted_means[:, 1] @ mo.sums[:, 0], shifted_means[:, 2] @ mo.sums[:, 0],
+         shifted_means[:, 2] @ mo.sums[:, 1]]
+    )  # fmt: skip
+    scatter[0, 1] = scatter[1, 0] = c[0]
+    scatter[0, 2] = scatter[2, 0] = c[1]
+    scatter[1, 2] = scatter[2, 1] = c[2]
+    cov = scatter / dof * (f * f)  # Eq. 7
+    return SensorStats(means, counts, cov, dof, trimmed=trimmed, scatter=per_pose)
+
+
+def _sensor_summary(
+    poses: list[Array], name: str, trim: bool, extremes: bool, scratch: _Scratch
+) -> tuple[_Moments, NDArray[np.int64], NDArray[np.int64] | None]:
+    """One sensor's sums (after cutting unsteady samples when ``trim``), checked: NaN, inf and
+    readings beyond :data:`LARGEST` are refused in one line, naming where."""
+    counts = np.fromiter((len(p) for p in poses), dtype=np.int64, count=len(poses))
+    if not trim:
+        mo = _moments(poses, counts, extremes, scratch)
+        # a NaN or inf reaches the sums; |x| <= |x0| + sqrt(Σ d²) bounds the range, and only
+        # when the bound is loose (or something is wrong) are the samples scanned again
+        if not (mo.finite and np.isfinite(mo.x0).all()) or mo.bound() > LARGEST:
+            _check_values(poses, name)
+            if not mo.finite:  # valid readings far larger than their poses' first ones
+                unit = power_of_two(max(float(np.abs(p).max()) for p in poses))
+                mo = _moments(poses, counts, extremes, scratch, unit)
+        return mo, counts, None
+    # trimming sorts every pose's samples: they are copied side by side once, axes as rows,
+    # into work space that every later step reuses
+    k = int(counts.sum())
+    work = scratch.floats(13, k)
+    x = np.concatenate([p.T for p in poses], axis=1, out=work[:3])
+    lo, hi = float(x.min()), float(x.max())  # NaN propagates through both
+    if not (np.isfinite(lo) and np.isfinite(hi)) or max(-lo, hi) > LARGEST:
+        _check_values(poses, name)
+    unit = power_of_two(max(-lo, hi))
+    if unit != 1.0:
+        x /= unit  # exact; the trimming's result does not depend on it
+    found = unsteady(x, counts, work[3:])
+    # the deviations from each pose's median are Eq. 5/7's shifted samples, ready-made
+    d, d2 = found.deviations, found.squares
+    if found.cut is not None:  # the kept ones, into rows of the work space now free
+        counts = counts - found.trimmed
+        keep, kept = ~found.cut, int(counts.sum())
+        d = np.compress(keep, d, axis=1, out=work[3:6, :kept])
+        d2 = np.compress(keep, d2, axis=1, out=work[6:9, :kept])
+    mo = _Moments.empty(found.medians.T * unit, unit)
+    mo.add_deviations(d, d2, np.arange(len(counts)), counts)
+    mo.extremes = (lo, hi)
+    return mo, counts, found.trimmed
 
 
 def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseStats:
@@ -306,24 +517,58 @@ def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseS
     -------
     PoseStats
         Means (Eq. 5), counts ``Δ_i`` and the pooled covariance with the generalised Bessel
-        correction (Eq. 7), per sensor. Vectorised: the poses are concatenated once and reduced
-        with ``np.add.reduceat``.
+        correction (Eq. 7), per sensor. One pass over the samples, in cache-sized blocks
+        (the values are checked in the same pass); without ``trim`` nothing is copied but a
+        block at a time.
+    """
+    return summarize_scaled(accel, mag, trim=trim, scaled=False)[0]
+
+
+def summarize_scaled(
+    accel: object, mag: object = None, *, trim: bool = False, scaled: bool = True
+) -> tuple[PoseStats, dict[str, float], dict[str, list[Array] | None]]:
+    """:func:`summarize` for readings divided by an exact power of two per sensor.
+
+    ``fieldcal.calibrate`` fits numbers of order one in any unit
+    (:mod:`fieldcal.stats.scaling`). The statistics are computed on the readings as given and
+    divided afterwards (exact: a power of two changes no digit), so no scaled copy of the
+    samples is made. Returns the statistics, the divisors (1 when ``scaled`` is false) and the
+    checked per-pose arrays, unscaled.
     """
     if accel is None and mag is None:
         raise ValueError("no data: pass accelerometer poses, magnetometer poses, or both")
     if not isinstance(trim, (bool, np.bool_)):
         raise ValueError(f"trim must be True or False, got {trim!r}")
-    a = None if accel is None else _validated(accel, "accel")
-    m = None if mag is None else _validated(mag, "mag")
-    if a is not None and m is not None and len(a[2]) != len(m[2]):
+    out: dict[str, SensorStats | None] = {"accel": None, "mag": None}
+    scratch = _Scratch()
+    scales = {"accel": 1.0, "mag": 1.0}
+    arrays: dict[str, list[Array] | None] = {"accel": None, "mag": None}
+    for name, samples in (("accel", accel), ("mag", mag)):
+        if samples is None:
+            continue
+        poses = _pose_arrays(samples, name)
+        # a NaN, inf or overflow is found from the sums and named in one line, not warned of
+        with np.errstate(all="ignore"):
+            mo, counts, trimmed = _sensor_summary(poses, name, bool(trim), scaled, scratch)
+        if scaled and mo.extremes is not None:
+            scales[name] = power_of_two(max(-mo.extremes[0], mo.extremes[1]))
+        out[name] = _from_moments(mo, counts, trimmed, scales[name])
+        arrays[name] = poses
+    a, m = out["accel"], out["mag"]
+    if a is not None and m is not None and a.n_poses != m.n_poses:
         raise ValueError(
-            f"accel has {len(a[2])} poses but mag has {len(m[2])}; pass the same poses, in the "
+            f"accel has {a.n_poses} poses but mag has {m.n_poses}; pass the same poses, in the "
             "same order, for both sensors"
         )
-    return PoseStats(
-        None if a is None else _sensor_stats(*a[1:], trim),
-        None if m is None else _sensor_stats(*m[1:], trim),
-    )
+    return PoseStats(a, m), scales, arrays
+
+
+def power_of_two(largest: float) -> float:
+    """``2^k`` nearest ``largest`` in the logarithm (1 for 0 or a non-finite value): dividing
+    by it changes no digit of a float and brings the readings to order one."""
+    if not largest > 0 or not math.isfinite(largest):
+        return 1.0
+    return float(2.0 ** round(math.log2(largest)))
 
 
 def stats_from_means(
@@ -381,17 +626,21 @@ def check_spread(stats: PoseStats) -> None:
     normal is, up to the small gain errors, the rotation axis, and poses with that axis tilted
     out of the horizontal plane are what is missing. One-line ``ValueError`` naming it.
     """
-    for name in stats.sensors:
-        means = stats.sensor(name).means
-        centred = means - means.mean(axis=0)
-        _, sv, Vt = np.linalg.svd(centred, full_matrices=False)
-        if sv[0] <= 1e-12 * float(np.abs(means).max()) or sv[1] < FLAT * sv[0]:
+    sensors = stats.sensors
+    means = [stats.sensor(name).means for name in sensors]
+    centred = [m - m.mean(axis=0) for m in means]
+    # the singular values of the centred means are the square roots of the eigenvalues of
+    # their scatter matrix: one 3x3 eigen-decomposition per sensor, both sensors in one call
+    lam, vectors = np.linalg.eigh(np.stack([c.T @ c for c in centred]))
+    for name, m, w, V in zip(sensors, means, lam, vectors, strict=True):
+        sv = np.sqrt(np.maximum(w[::-1], 0.0))
+        if sv[0] <= 1e-12 * float(np.abs(m).max()) or sv[1] < FLAT * sv[0]:
             raise ValueError(
                 f"degenerate poses: the {name} readings barely change from pose to pose or lie "
                 "on a line; turn the device so that each of its axes points up and down in turn"
             )
         if sv[2] < FLAT * sv[0]:
-            normal = Vt[2] * np.sign(Vt[2][np.argmax(np.abs(Vt[2]))])
+            normal = V[:, 0] * np.sign(V[np.argmax(np.abs(V[:, 0])), 0])
             axis = "xyz"[int(np.argmax(np.abs(normal)))]
             raise ValueError(
                 f"degenerate poses: the {name} readings lie in one plane (all rotations about "

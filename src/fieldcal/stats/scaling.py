@@ -5,6 +5,10 @@ milli-g... Dividing by ``2^k`` changes no digit of a float, so calibrating ``x /
 scaling the result back gives the same numbers, to rounding, whatever the unit — the fitting
 code then only ever sees readings of order one. Readings whose squares overflow (beyond
 1e150) cannot have a covariance and are refused.
+
+This module scales continuous (n, 3) input. Per-pose input is never copied to be scaled: its
+pose statistics are divided instead (:func:`fieldcal.stats.poses.summarize_scaled`), which
+gives the same digits.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from .poses import LARGEST, Samples, as_pose_list, as_readings
+from .poses import LARGEST, Samples, as_pose_list, as_readings, power_of_two
 
 __all__ = ["LARGEST", "normalise"]
 
@@ -30,7 +34,7 @@ def _scale_of(largest: float, name: str, where: str = "") -> float:
             "point; give them in a smaller unit (e.g. divide by a power of ten) and scale the "
             "gain back"
         )
-    return float(2.0 ** round(math.log2(largest)))
+    return power_of_two(largest)
 
 
 def _largest(x: Array) -> tuple[float, str]:

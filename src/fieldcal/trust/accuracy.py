@@ -17,8 +17,6 @@ each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattic
 
 from __future__ import annotations
 
-from typing import cast
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -41,16 +39,29 @@ def _sphere(n: int) -> Array:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
+_SPHERE = _sphere(_ORIENTATIONS)
+_SPHERE.setflags(write=False)
+
+
+def _level(n: int) -> Array:
+    """World → body rotations of a level device at ``n`` headings: yaws about the down axis."""
+    psi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    c, s = np.cos(psi), np.sin(psi)
+    R = np.zeros((n, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, s, -s, c, 1.0
+    return R
+
+
+_LEVEL = _level(_HEADINGS)
+_LEVEL.setflags(write=False)
+
+
 def _param_block(cov: ParameterCovariance | None, sensor: str) -> Array:
     """(12, 12) covariance of ``vec(K)`` (row-major) and ``b`` of one sensor (zeros if none)."""
-    if cov is None:
+    block = None if cov is None else cov.sensor_blocks.get(sensor)
+    if block is None or len(block.names) != 12:  # gains and biases, in this order, or nothing
         return np.zeros((12, 12))
-    names = [f"{sensor}.gain[{j},{k}]" for j in range(3) for k in range(3)]
-    names += [f"{sensor}.bias[{j}]" for j in range(3)]
-    if not all(n in cov.names for n in names):
-        return np.zeros((12, 12))
-    idx = [cov.index(n) for n in names]
-    return cov.matrix[np.ix_(idx, idx)]
+    return block.matrix
 
 
 def _reading_error_cov(cal: Calibration, sensor: str, v: Array) -> Array:
@@ -69,7 +80,7 @@ def _reading_error_cov(cal: Calibration, sensor: str, v: Array) -> Array:
 
 
 def _norm_and_direction(cal: Calibration, sensor: str) -> tuple[float, float]:
-    v = _sphere(_ORIENTATIONS)
+    v = _SPHERE
     C = _reading_error_cov(cal, sensor, v)
     radial = np.einsum("ni,nij,nj->n", v, C, v)
     perp = np.trace(C, axis1=1, axis2=2) - radial
@@ -77,45 +88,50 @@ def _norm_and_direction(cal: Calibration, sensor: str) -> tuple[float, float]:
 
 
 def _heading(a: Array, m: Array) -> Array:
-    """Heading (rad) of the body x axis from body-frame specific force and field, (..., 3)."""
-    down = -a / np.linalg.norm(a, axis=-1, keepdims=True)
-    east = np.cross(down, m)
-    east /= np.linalg.norm(east, axis=-1, keepdims=True)
-    north = np.cross(east, down)
-    return np.asarray(np.arctan2(-north[..., 1], north[..., 0]))
+    """Heading (rad) of the body x axis from body-frame specific force and field, (..., 3).
+
+    North in the body frame is ``(d × m) × d = m |d|² − d (d·m)`` with ``d = −a`` the down
+    direction (the field's horizontal part): scale does not change its heading, so nothing is
+    normalised."""
+    d0, d1, d2 = -a[..., 0], -a[..., 1], -a[..., 2]
+    m0, m1, m2 = m[..., 0], m[..., 1], m[..., 2]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    dm = d0 * m0 + d1 * m1 + d2 * m2
+    return np.asarray(np.arctan2(d1 * dm - m1 * dd, m0 * dd - d0 * dm))
 
 
 def _heading_error(cal: Calibration) -> float | None:
     if cal.accel is None or cal.mag is None or cal.gravity is None or cal.magnetic is None:
         return None
-    psi = np.linspace(0.0, 2 * np.pi, _HEADINGS, endpoint=False)
-    c, s = np.cos(psi), np.sin(psi)
-    # world -> body for a level device heading psi: a yaw about the down axis
-    R = np.zeros((_HEADINGS, 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, s, -s, c, 1.0
     raw = {
-        name: (R @ cal.reference(name)) @ cal.sensor(name).gain.T + cal.sensor(name).bias
+        name: (_LEVEL @ cal.reference(name)) @ cal.sensor(name).gain.T + cal.sensor(name).bias
         for name in ("accel", "mag")
     }
     # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6)
     base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
-
-    def headings(deltas: Array) -> Array:
-        """Headings (P, H) for P perturbations (P, 30) of the parameters and noise."""
-        out = {}
-        for k, name in enumerate(("accel", "mag")):
-            K, b = base[name]
-            d = deltas[:, 12 * k : 12 * k + 12]
-            noise = deltas[:, 24 + 3 * k : 27 + 3 * k]
-            Kp = K + d[:, :9].reshape(-1, 3, 3)
-            rhs = raw[name][None] + (noise - b - d[:, 9:])[:, None, :]  # (P, H, 3)
-            out[name] = cast(Array, np.linalg.solve(Kp[:, None], rhs[..., None])[..., 0])
-        return _heading(out["accel"], out["mag"])
-
     scale = max(float(np.abs(base["accel"][0]).max()), float(np.abs(base["mag"][0]).max()))
     step = 1e-6 * scale
-    both = headings(np.vstack([np.zeros(30), np.eye(30) * step]))
-    J = (np.angle(np.exp(1j * (both[1:] - both[0]))) / step).T  # (H, 30)
+    # corrected readings (31, H, 3) per sensor: unperturbed, then one row per parameter
+    corrected = {}
+    for k, name in enumerate(("accel", "mag")):
+        K, b = base[name]
+        # one solve gives the corrected readings and K⁻¹ (the right-hand sides' last columns)
+        solved = np.linalg.solve(K, np.column_stack([(raw[name] - b).T, np.eye(3)]))
+        u, Kinv = solved[:, :_HEADINGS].T, solved[:, _HEADINGS:]
+        rows = np.broadcast_to(u, (31, _HEADINGS, 3)).copy()
+        # a gain entry K[j, l] + s: Sherman-Morrison, u − s K⁻¹e_j u_l / (1 + s K⁻¹[l, j])
+        j, col = np.divmod(np.arange(9), 3)
+        denom = 1.0 + step * Kinv[col, j]
+        first = 1 + 12 * k
+        along = step * u[:, col].T / denom[:, None]  # (9, H): s u_l / (1 + s K⁻¹[l, j])
+        rows[first : first + 9] -= along[:, :, None] * Kinv[:, j].T[:, None, :]
+        # a bias b_j + s moves the reading by −s K⁻¹e_j, a noise n_j + s by +s K⁻¹e_j
+        rows[first + 9 : first + 12] -= step * Kinv.T[:, None, :]
+        rows[25 + 3 * k : 28 + 3 * k] += step * Kinv.T[:, None, :]
+        corrected[name] = rows
+    both = _heading(corrected["accel"], corrected["mag"])
+    wrapped = np.remainder(both[1:] - both[0] + np.pi, 2.0 * np.pi) - np.pi
+    J = (wrapped / step).T  # (H, 30)
     C = np.zeros((30, 30))
     C[:12, :12] = _param_block(cal.covariance, "accel")
     C[12:24, 12:24] = _param_block(cal.covariance, "mag")
@@ -130,7 +146,7 @@ def _heading_error(cal: Calibration) -> float | None:
             C[12:24, :12] = C[:12, 12:24].T
     C[24:27, 24:27] = np.eye(3) * cal.sensor("accel").pose_noise_std ** 2
     C[27:30, 27:30] = np.eye(3) * cal.sensor("mag").pose_noise_std ** 2
-    var = np.einsum("hp,pq,hq->h", J, C, J)
+    var = np.einsum("hp,hp->h", J @ C, J)
     return float(np.degrees(np.sqrt(max(var.mean(), 0.0))))
 
 

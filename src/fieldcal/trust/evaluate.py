@@ -8,6 +8,7 @@ whitened by each pose mean's covariance ``C_si = Σ_s/Δ_si + Q_s`` (the stats' 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -86,6 +87,9 @@ def evaluate(cal: Calibration, stats: PoseStats, body_frame: str) -> Evaluation:
         directions[s] = v / np.linalg.norm(v, axis=1, keepdims=True)
         k = problem.sensors.index(s)
         # back to raw units: L_i e_i
-        chol = np.linalg.inv(problem.linv[s])
+        cached = problem.memo.get(("chol", s))
+        if cached is None:
+            cached = problem.memo[("chol", s)] = np.linalg.inv(problem.linv[s])
+        chol = cast(Array, cached)
         raw[s] = np.einsum("nij,nj->ni", chol, e[:, 3 * k : 3 * k + 3])
     return Evaluation(problem, e, raw, uncertainty(problem, ne), directions)

@@ -211,14 +211,16 @@ def fit_trusted(
         previous = dataclasses.replace(cal, rotations=cal.rotations[local])
         cal = runner.method_fit(sub, keep, previous)
         cal, ml, current, ev, noise = _noise_round(runner, cal, sub, keep, free)
-    cal = dataclasses.replace(cal, options={**cal.options, **first_options})
+    # the cold fit's account goes into the options in _finish's one replace: ``cal`` stays the
+    # very object ``ml`` is when the method is the ML fit, so it is not evaluated twice
     result, found = _finish(
-        cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total
+        cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total, first_options
     )
     # the handedness is a choice of gauge: make it before the verdict reads the dip
     result = result.with_mag_handedness(mag_mirrored)
-    result = dataclasses.replace(result, accuracy=predict_accuracy(result))
-    return dataclasses.replace(result, verdict=judge(result, current, found))
+    accuracy = predict_accuracy(result)
+    verdict = judge(result, current, found, accuracy)
+    return dataclasses.replace(result, accuracy=accuracy, verdict=verdict)
 
 
 def _finish(
@@ -233,6 +235,7 @@ def _finish(
     left: int,
     sources: dict[str, str],
     n_total: int,
+    first_options: Mapping[str, object],
 ) -> tuple[Calibration, Findings]:
     ev = ev_ml if cal is ml else evaluate(cal, stats, runner.body_frame)
     factor = widening(ev_ml, noise, stats)
@@ -258,6 +261,7 @@ def _finish(
             noise_cov_std=noise_std if noise_std is not None else np.zeros((3, 3)),
             noise_source=source,
             pose_noise_std=0.0 if one_sample else float(np.sqrt(st.pose_var)),
+            covariance=covariance.sensor_blocks[s],  # the block the result will hold
             pose_noise_std_se=None if one_sample else noise.std_se.get(s),
         )
     excess = None
@@ -269,6 +273,7 @@ def _finish(
             excess = {"method": cal.method, "excess": diff, "dof": G, "p": p}
     options = {
         **cal.options,
+        **first_options,
         "pose_noise": {
             s: ("estimated" if s in noise.estimated else "given") for s in stats.sensors
         },

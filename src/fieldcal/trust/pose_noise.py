@@ -89,15 +89,17 @@ def solve_pose_variance(proj: Array, lam: Array, target: float) -> float:
     """
     if target <= 0:
         return 0.0
-    positive = bool(np.all(lam > 0))
-    if positive and float(np.sum(proj / lam)) <= target:
+    proj, lam = proj.ravel(), lam.ravel()
+    positive = bool(lam.min() > 0)
+    if positive and float(proj @ (1.0 / lam)) <= target:
         return 0.0
     # a start left of the root: below the smallest q² at which J could reach the target
-    q2 = 0.0 if positive else 1e-12 * float(np.sum(proj)) / target
+    q2 = 0.0 if positive else 1e-12 * float(proj.sum()) / target
     for _ in range(100):
         inv = 1.0 / (lam + q2)
-        value = float(np.sum(proj * inv)) - target
-        slope = float(np.sum(proj * inv * inv))
+        weighted = proj * inv
+        value = float(weighted.sum()) - target
+        slope = float(weighted @ inv)
         if slope <= 0:
             return q2
         step = value / slope

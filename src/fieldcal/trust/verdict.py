@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..calibration import Calibration, Verdict
+from ..calibration import Accuracy, Calibration, Verdict
 from ..stats.poses import PoseStats
 
 __all__ = ["RULES", "Findings", "judge"]
@@ -84,7 +84,7 @@ RULES: dict[str, tuple[str, str]] = {
         "note",
         "the dip came out negative ({dip:.1f}°): right in the southern magnetic hemisphere; "
         "otherwise the magnetometer is mirrored (--mag-mirrored) or the accelerometer reports "
-        "gravity instead of specific force",
+        "gravity instead of specific force (--accel-sign gravity)",
     ),
     "not_ml": (
         "warn",
@@ -134,8 +134,11 @@ def _unit(x: Array) -> Array:
     return np.asarray(x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300))
 
 
-def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
-    """Apply :data:`RULES` to a finished calibration; the worst level wins."""
+def judge(
+    cal: Calibration, stats: PoseStats, found: Findings, accuracy: Accuracy | None = None
+) -> Verdict:
+    """Apply :data:`RULES` to a finished calibration; the worst level wins. ``accuracy``, when
+    given, stands for ``cal.accuracy`` (so both can be attached in one step)."""
     reasons: list[tuple[str, str]] = []
 
     def add(code: str, **values: object) -> None:
@@ -179,7 +182,7 @@ def judge(cal: Calibration, stats: PoseStats, found: Findings) -> Verdict:
             share = float(trimmed.sum() / (trimmed.sum() + stats.sensor(s).counts.sum()))
             if share > TRIMMED:
                 add("trimmed", share=share, sensor=s, poses=int(np.count_nonzero(trimmed)))
-    accuracy = cal.accuracy
+    accuracy = cal.accuracy if accuracy is None else accuracy
     if accuracy is not None:
         for what, limit in UNUSABLE.items():
             value = getattr(accuracy, what)

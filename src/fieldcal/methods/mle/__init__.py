@@ -70,7 +70,7 @@ def _canonical(problem: Problem, state: State) -> State:
     other = "mag" if problem.frame == "accel" else "accel"
     # K and −K fit equally (see flip_other): the stated handedness decides, as in
     # Calibration.with_mag_handedness, which fieldcal.calibrate applies afterwards
-    det = np.linalg.det(state.gains[other]) * np.linalg.det(state.gains[problem.frame])
+    det = np.prod(np.linalg.det(np.stack([state.gains[other], state.gains[problem.frame]])))
     return flip_other(problem, state, other) if det < 0 else state
 
 

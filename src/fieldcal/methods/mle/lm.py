@@ -14,11 +14,13 @@ At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, s
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg.lapack import dgesv as _dgesv
 
 from .model import Problem, State, apply_step, jacobians, residuals, rotation_basis
 
@@ -50,7 +52,7 @@ def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
         W=JpT @ Jg,
         V=flat.T @ flat,
         gp=(JpT @ e[:, :, None])[:, :, 0],
-        gg=flat.T @ e.ravel(),
+        gg=e.ravel() @ flat,
         Jp=Jp,
         Jg=Jg,
         basis=basis,
@@ -60,15 +62,18 @@ def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
 def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array, Array, Array]:
     """Damped pose blocks' inverses, ``U⁻¹W``, the reduced matrix S (Schur complement) and the
     damping added to the pose and global diagonals (Marquardt: proportional to the diagonal)."""
-    p = ne.U.shape[1]
-    dU = np.einsum("nii->ni", ne.U)
+    n, p, _ = ne.U.shape
+    dU = ne.U.reshape(n, p * p)[:, :: p + 1]
     damp_p = lam * dU + 1e-12 * (1.0 + dU)
-    Uinv = np.linalg.inv(ne.U + damp_p[:, :, None] * np.eye(p))
+    damped = ne.U.copy()
+    damped.reshape(n, p * p)[:, :: p + 1] += damp_p
+    Uinv = cast(Array, np.linalg.inv(damped))
     Y = Uinv @ ne.W
-    dV = np.diag(ne.V)
-    damp_g = lam * dV + 1e-12 * (1.0 + dV)
     G = ne.V.shape[0]
-    S = ne.V + np.diag(damp_g) - ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
+    dV = ne.V.ravel()[:: G + 1]
+    damp_g = lam * dV + 1e-12 * (1.0 + dV)
+    S = ne.V - ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
+    S.ravel()[:: G + 1] += damp_g
     return Uinv, Y, S, damp_p, damp_g
 
 
@@ -77,12 +82,34 @@ def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     Uinv, Y, S, damp_p, damp_g = reduce(ne, lam)
     G = ne.V.shape[0]
     z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
-    rhs = -(ne.gg - ne.W.reshape(-1, G).T @ z.ravel())
-    dg = cast(Array, np.linalg.solve(S, rhs))
-    dp = -(z + (Y @ dg))
+    rhs = ne.W.reshape(-1, G).T @ z.ravel() - ne.gg
+    dg = _solve(S, rhs)
+    dp = Y @ dg
+    dp += z
+    dp = -dp
     # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = −δᵀg + δᵀΛδ since (H + Λ)δ = −g
-    pred = -(dg @ ne.gg + np.sum(dp * ne.gp)) + dg @ (damp_g * dg) + np.sum(damp_p * dp * dp)
+    flat_dp, flat_gp = dp.ravel(), ne.gp.ravel()
+    pred = (
+        -(dg @ ne.gg + flat_dp @ flat_gp)
+        + (damp_g * dg) @ dg
+        + (damp_p.ravel() * flat_dp) @ flat_dp
+    )
     return dg, dp, float(pred)
+
+
+def _solve(S: Array, rhs: Array) -> Array:
+    """``S⁻¹ rhs`` for the small symmetric reduced system: LAPACK's LU directly (numpy's
+    wrapper costs more than the 22x22 solve itself); a singular S raises as numpy does."""
+    _, _, x, info = _dgesv(S, rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return cast(Array, x)
+
+
+def _cost(e: Array) -> float:
+    """Eq. 8's J, ``Σ e²``."""
+    flat = e.ravel()
+    return float(flat @ flat)
 
 
 @dataclass
@@ -115,7 +142,7 @@ def levenberg_marquardt(
     start is heading for the same minimum and is abandoned (saves its last iterations).
     """
     e = residuals(problem, state)
-    cost = float(np.sum(e * e))
+    cost = _cost(e)
     nu = 2.0
     converged = False
     it = 0
@@ -131,12 +158,14 @@ def levenberg_marquardt(
         ):
             converged = True
             break
-        if not np.all(np.isfinite(dg)) or not np.all(np.isfinite(dp)):
+        # a NaN or inf in the step reaches the predicted decrease (its damping terms are sums
+        # of positive weights times squares), so one scalar test stands for both arrays
+        if not math.isfinite(pred) and not (np.isfinite(dg).all() and np.isfinite(dp).all()):
             lam *= 10.0
             continue
         trial = apply_step(problem, state, dg, dp, ne.basis)
         e_new = residuals(problem, trial)
-        cost_new = float(np.sum(e_new * e_new))
+        cost_new = _cost(e_new)
         gain = cost - cost_new
         rho = gain / pred if pred > 0 else -1.0
         if rho > 0 and np.isfinite(cost_new):

@@ -17,7 +17,7 @@ per pose. With one sensor the rotation about its field is unobservable: each pos
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
+from dataclasses import field as dataclass_field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -65,6 +65,10 @@ class Problem:
     bias_slice: dict[str, slice]
     dip_index: int | None
     n_global: int
+    #: derived once per problem (e.g. the Cholesky factors back from ``linv``)
+    memo: dict[object, object] = dataclass_field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @property
     def joint(self) -> bool:
@@ -103,21 +107,35 @@ class State:
 
 def build_problem(stats: PoseStats, frame: str) -> Problem:
     """Whiten the pose means (Eq. 5) with their covariances (Eq. 7 plus pose-level noise) and
-    lay out the parameters."""
+    lay out the parameters. Built once per statistics and frame (kept in ``stats.memo``): the
+    fit and the evaluation of its result share it."""
+    key = ("mle.problem", frame)
+    cached = stats.memo.get(key)
+    if isinstance(cached, Problem):
+        return cached
+    problem = _build_problem(stats, frame)
+    stats.memo[key] = problem
+    return problem
+
+
+def _build_problem(stats: PoseStats, frame: str) -> Problem:
     sensors = tuple(stats.sensors)
     if frame not in sensors:
         frame = sensors[0]
     linv, means, start_chol, start_weight, start_mu, gs, bs = {}, {}, {}, {}, {}, {}, {}
+    # both sensors' factorisations in one call each (the same LAPACK routine per matrix)
+    st = [stats.sensor(s) for s in sensors]
+    covs = np.stack([x.mean_covariances() for x in st])
+    refs = np.stack([x.cov if x.cov is not None else np.eye(3) * x.pose_var for x in st])
+    mus = np.stack([np.asarray(x.means, dtype=float) for x in st])
+    all_linv = np.linalg.inv(np.linalg.cholesky(covs))
+    all_chol = np.linalg.cholesky(refs)
+    all_weight = 3.0 / np.einsum("sij,snji->sn", np.linalg.inv(refs), covs)
+    all_mu = np.linalg.solve(all_chol, mus.transpose(0, 2, 1)).transpose(0, 2, 1)
     offset = 0
-    for s in sensors:
-        st = stats.sensor(s)
-        covs = st.mean_covariances()
-        linv[s] = cast(Array, np.linalg.inv(np.linalg.cholesky(covs)))
-        means[s] = np.asarray(st.means, dtype=float)
-        ref = st.cov if st.cov is not None else np.eye(3) * st.pose_var
-        start_chol[s] = cast(Array, np.linalg.cholesky(ref))
-        start_weight[s] = 3.0 / np.einsum("ij,nji->n", np.linalg.inv(ref), covs)
-        start_mu[s] = cast(Array, np.linalg.solve(start_chol[s], means[s].T).T)
+    for k, s in enumerate(sensors):
+        linv[s], means[s], start_chol[s] = all_linv[k], mus[k], all_chol[k]
+        start_weight[s], start_mu[s] = all_weight[k], all_mu[k]
         size = 6 if s == frame else 9
         gs[s] = slice(offset, offset + size)
         bs[s] = slice(offset + size, offset + size + 3)

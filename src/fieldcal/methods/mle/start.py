@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from ...geometry.alignment import constant_angle, constant_angle_rows
 from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
-from ...geometry.quadrics import family_fit, pencil_fits, spd_sqrt
+from ...geometry.quadrics import family_fit, family_fits, pencil_fits, spd_sqrt
 from ...geometry.rotations import exp_so3, wahba
 from .model import Problem, State, field
 
@@ -60,9 +60,30 @@ def min_rotations(f: Array, u: Array) -> Array:
     return exp_so3(axis * angle[:, None])
 
 
+def sensor_starts(problem: Problem, model: str) -> dict[str, tuple[Array, Array]] | None:
+    """:func:`sensor_start` of every sensor with the same ellipsoid family, all at once."""
+    sensors = problem.sensors
+    K, c, ok = family_fits(
+        np.stack([problem.start_mu[s] for s in sensors]),
+        np.stack([problem.start_weight[s] for s in sensors]),
+        model,
+    )
+    if not ok.all():
+        return None
+    L = np.stack([problem.start_chol[s] for s in sensors])
+    K = L @ K
+    # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
+    P, _ = spd_sqrt(K @ K.transpose(0, 2, 1))
+    b = (L @ c[:, :, None])[:, :, 0]
+    return {s: (P[k], b[k]) for k, s in enumerate(sensors)}
+
+
 def closed_form_start(problem: Problem, model: str | tuple[str, str] = "full") -> State | None:
     """A full starting state, or None when an ellipsoid fit fails for this model."""
     models = (model, model) if isinstance(model, str) else model
+    if len(set(models[: len(problem.sensors)])) == 1:
+        fits = sensor_starts(problem, models[0])
+        return None if fits is None else start_from_fits(problem, fits)
     fits = {}
     for s, m in zip(problem.sensors, models, strict=False):
         fit = sensor_start(problem, s, m)

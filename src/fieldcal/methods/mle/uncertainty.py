@@ -11,6 +11,7 @@ residual (outlier tests).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +56,14 @@ def global_covariance(ne: Normal) -> tuple[Array, Array, Array, float]:
 
 def named_map(problem: Problem) -> tuple[list[str], Array]:
     """Names and the linear map from the G globals to the named parameters."""
+    cached = problem.memo.get("named_map")
+    if cached is None:
+        cached = problem.memo["named_map"] = _named_map(problem)
+    names, T = cast(tuple[list[str], Array], cached)
+    return list(names), T
+
+
+def _named_map(problem: Problem) -> tuple[list[str], Array]:
     names: list[str] = []
     blocks = []
     G = problem.n_global
@@ -82,9 +91,10 @@ def leverage_blocks(ne: Normal, C: Array, Uinv: Array, Y: Array) -> Array:
     With the arrow structure, ``H_ii = Jp_i U_i⁻¹ Jp_iᵀ + X_i C X_iᵀ`` and
     ``X_i = Jg_i − Jp_i U_i⁻¹ W_i`` (block inverse through the Schur complement)."""
     Jp, Jg = ne.Jp, ne.Jg
-    H = np.einsum("nmi,nij,nkj->nmk", Jp, Uinv, Jp)
+    # matrix products, not three-operand einsums (those loop over every index combination)
+    H = (Jp @ Uinv) @ Jp.transpose(0, 2, 1)
     X = Jg - Jp @ Y
-    return H + np.einsum("nmi,ij,nkj->nmk", X, C, X)
+    return H + (X @ C) @ X.transpose(0, 2, 1)
 
 
 def uncertainty(problem: Problem, ne: Normal) -> Uncertainty:
