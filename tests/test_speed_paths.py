@@ -18,7 +18,11 @@ import pytest
 
 import fieldcal
 from fieldcal.calibration import _sensor_block
+from fieldcal.logs import Table, load_log, poses_from_log, stillness
+from fieldcal.logs import poses as log_poses
+from fieldcal.logs.stillness import detect_still
 from fieldcal.methods.mle import model as mle_model
+from fieldcal.simulation.continuous import simulate_continuous
 from fieldcal.stats import poses as pose_stats
 from fieldcal.stats import trimming
 from fieldcal.trust import accuracy, fitting
@@ -280,3 +284,227 @@ def test_subnormal_readings_are_summarised_without_losing_their_squares():
     ref = fieldcal.calibrate(s.accel, s.mag)
     assert tiny.dip_deg == pytest.approx(ref.dip_deg, abs=1e-6)
     assert tiny.verdict.level == ref.verdict.level
+
+
+# ------------------------------------------------------------------ still detection, trimming
+# The shortcuts of the still detection and the per-pose trimming on logs of 10^6 samples,
+# each against the computation it replaces (written here as it was), to the last bit.
+
+
+def _key_sort_statistics(x: np.ndarray, counts: np.ndarray, ranks: np.ndarray) -> np.ndarray:
+    """Order statistics as the trimming first took them: one sort of the keys
+    ``pose · span + (x − low)`` of all the poses, read back as ``key − pose · span + low``."""
+    index = np.repeat(np.arange(len(counts)), counts)
+    starts = np.cumsum(counts) - counts
+    low = x.min(axis=1, keepdims=True)
+    span = 2.0 * (x.max(axis=1, keepdims=True) - low)
+    span[span == 0] = 1.0
+    keys = index * span + (x - low)
+    keys.sort(axis=1)
+    out = np.full((ranks.shape[1], x.shape[0], len(counts)), np.nan)
+    for j in range(ranks.shape[1]):
+        for i in np.flatnonzero(ranks[:, j] >= 0):
+            k = starts[i] + ranks[i, j]
+            out[j, :, i] = keys[:, k] - index[k] * span[:, 0] + low[:, 0]
+    return out
+
+
+def _poses_around_the_selection_size(seed: int, quantum: float = 0.0) -> list[np.ndarray]:
+    """Poses on both sides of trimming.SELECT (partitions above, one sort below), odd and
+    even counts, tiny poses, bumps; ``quantum``: readings rounded to it (ties)."""
+    rng = np.random.default_rng(seed)
+    counts = [5, 9, 10, 11, trimming.SELECT - 1, trimming.SELECT, trimming.SELECT + 1, 5000]
+    counts += [100, 3, 4096, 1, 2, 777, 12]
+    poses = []
+    for n in counts:
+        p = rng.normal(size=3) * 9.8 + 0.01 * rng.standard_normal((n, 3))
+        if n > 40 and rng.random() < 0.6:  # a bump
+            k = int(rng.integers(0, n - 30))
+            p[k : k + 30] += rng.normal(0.0, 0.2, (30, 3))
+        poses.append(np.round(p / quantum) * quantum if quantum else p)
+    return poses
+
+
+@pytest.mark.parametrize(("seed", "quantum"), [(0, 0.0), (1, 0.0), (2, 0.004), (3, 0.05)])
+def test_order_statistics_by_partitions_equal_those_of_the_key_sort(seed, quantum):
+    """Large poses select their order statistics by partitions and apply the key's arithmetic
+    to the selected readings only; small ones share a sort: both give the sorted keys' values."""
+    poses = _poses_around_the_selection_size(seed, quantum)
+    counts = np.array([len(p) for p in poses])
+    x = np.ascontiguousarray(np.concatenate(poses).T)
+    lo = (counts - 1) // 2
+    ranks = np.column_stack([lo // 2, lo, counts // 2, lo // 2 + lo + 1])
+    ranks[counts < trimming.MIN_SAMPLES, 0] = ranks[counts < trimming.MIN_SAMPLES, 3] = -1
+    expected = _key_sort_statistics(x, counts, ranks)
+    found = trimming.unsteady(x.copy(), counts, np.empty((4, x.shape[1])))
+    np.testing.assert_array_equal(found.medians, 0.5 * (expected[1] + expected[2]))
+    # the MADs: the same statistics of the absolute deviations from those medians
+    absolute = np.abs(found.deviations)
+    starts = np.cumsum(counts) - counts
+    mads = trimming._mads(found.deviations, starts, counts, ranks[:, 1:3])
+    middle = _key_sort_statistics(absolute, counts, ranks[:, 1:3])
+    np.testing.assert_array_equal(mads, 0.5 * (middle[0] + middle[1]))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_trimming_of_large_poses_cuts_what_the_plain_rule_cuts(seed):
+    poses = _poses_around_the_selection_size(seed + 10)
+    stacked, counts = np.concatenate(poses), np.array([len(p) for p in poses])
+    kept, kept_counts, trimmed = trimming.trim_unsteady(stacked, counts)
+    cut = _median_trim(stacked, counts)
+    assert cut.any()
+    np.testing.assert_array_equal(kept, stacked[~cut])
+    np.testing.assert_array_equal(trimmed + kept_counts, counts)
+
+
+def test_trimming_leaves_an_f_ordered_input_as_it_was():
+    stacked = np.asfortranarray(np.concatenate(_poses_around_the_selection_size(4)))
+    before = stacked.copy()
+    trimming.trim_unsteady(stacked, np.array([len(p) for p in _poses_around_the_selection_size(4)]))
+    np.testing.assert_array_equal(stacked, before)
+
+
+def test_candidates_by_weighted_squares_give_the_cut_of_every_sample():
+    """d² is computed exactly only where the weighted squares (one product) do not rule a cut
+    out: the same samples as d² = einsum((x − m) / s) for all of them."""
+    rng = np.random.default_rng(5)
+    deviations = rng.standard_normal((3, 300_000)) * [[1.0], [2.0], [0.5]]
+    deviations[:, rng.choice(300_000, 40, replace=False)] *= 4.0  # beyond the cut
+    scale = np.array([1.0, 2.0, 0.5]) * 1.02
+    for usable in (np.array([True, True, True]), np.array([True, False, True])):
+        # and samples a hair's breadth on either side of it
+        near = rng.choice(300_000, 40, replace=False)
+        z = deviations[:, near][usable] / scale[usable, None]
+        ratio = trimming.CUT / (np.sum(z * z, axis=0) * (3.0 / usable.sum()))
+        ratio *= 1.0 + np.tile([-1e-4, -1e-7, 1e-10, 1e-7, 1e-4], 8)
+        deviations[:, near] *= np.sqrt(ratio)
+        z = deviations[usable] / scale[usable, None]
+        d2 = np.einsum("ij,ij->j", z, z) * (3.0 / usable.sum())
+        found = trimming._beyond(
+            deviations, deviations**2, np.where(usable, scale, 0.0), usable, np.empty(300_000)
+        )
+        np.testing.assert_array_equal(found, np.flatnonzero(d2 > trimming.CUT))
+        assert 20 < found.size < 150
+
+
+@pytest.mark.parametrize("cuts", [0, 1, 7, 3000])
+def test_kept_columns_by_slices_equal_compress(cuts):
+    rng = np.random.default_rng(cuts)
+    x = rng.standard_normal((3, 50_000))
+    cut = np.zeros(50_000, dtype=bool)
+    cut[rng.choice(50_000, cuts, replace=False)] = True
+    cut[[0, -1]] = cuts > 0  # at the ends too
+    out = np.empty((3, int((~cut).sum())))
+    np.testing.assert_array_equal(pose_stats._kept(x, cut, out), np.compress(~cut, x, axis=1))
+
+
+def test_numpy_orders_of_summation_the_shortcuts_rely_on():
+    """Running sums give numpy's sum over the rows of an (n, 3) array; the three axes of a row
+    summed left to right are its .sum(axis=1); (z₀² + z₁²) + z₂² is einsum's d²."""
+    rng = np.random.default_rng(6)
+    for n in (1, 2, 7, 1000, 65_537):
+        x = rng.standard_normal((n, 3)) * [1.0, 1e-3, 5.0] + [0.3, -9.8, 0.1]
+        np.testing.assert_array_equal(stillness._column_sums(x), x.sum(axis=0))
+        mean, var = stillness._mean_var(x)
+        np.testing.assert_array_equal(mean, x.mean(axis=0))
+        np.testing.assert_array_equal(var, x.var(axis=0))
+        np.testing.assert_array_equal(x[:, 0] + x[:, 1] + x[:, 2], x.sum(axis=1))
+        z = np.ascontiguousarray(x.T)
+        np.testing.assert_array_equal(
+            (z[0] * z[0] + z[1] * z[1]) + z[2] * z[2], np.einsum("ij,ij->j", z, z)
+        )
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 10, 11, 1000, 100_001])
+def test_quantile_and_median_by_one_partition_equal_numpy(n):
+    rng = np.random.default_rng(n)
+    x = rng.standard_normal((n, 3)) ** 2
+    x[rng.random(n) < 0.2] = 0.0  # ties
+    for q in (0.0, 0.1, 0.25, 0.5, 0.9, 1.0, 1 / 3):
+        assert stillness._quantile(x[:, 0].copy(), q) == float(np.quantile(x[:, 0], q))
+    rows = rng.random(n) < 0.7
+    np.testing.assert_array_equal(stillness._median_columns(x, None), np.median(x, axis=0))
+    if rows.any():
+        np.testing.assert_array_equal(
+            stillness._median_columns(x, rows), np.median(x[rows], axis=0)
+        )
+
+
+def _moving_variance_as_it_was(x: np.ndarray, window: int) -> np.ndarray:
+    """The moving variance with a temporary per step (no shared sums, no division in place)."""
+    x = x - x.mean(axis=0)
+    n, half = len(x), window // 2
+    c1 = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
+    c2 = np.vstack([np.zeros((1, 3)), np.cumsum(x * x, axis=0)])
+    lo, hi = np.clip(np.arange(n) - half, 0, n), np.clip(np.arange(n) + half + 1, 0, n)
+    count = (hi - lo).astype(float)[:, None]
+    mean = (c1[hi] - c1[lo]) / count
+    var = np.maximum((c2[hi] - c2[lo]) / count - mean**2, 0.0)
+    return var.sum(axis=1)
+
+
+@pytest.mark.parametrize("window", [3, 25, 101])
+def test_moving_variance_from_shared_sums_equals_the_plain_one(window):
+    rng = np.random.default_rng(window)
+    x = rng.standard_normal((20_000, 3)) * 1e-3 + [0.1, -9.8, 0.2]
+    x[5000:6000] += np.linspace(0, 3, 1000)[:, None]
+    np.testing.assert_array_equal(
+        stillness.moving_variance(x, window), _moving_variance_as_it_was(x, window)
+    )
+
+
+@pytest.mark.parametrize("step", [0.0, 1e-4, 0.02, 0.05, 0.5])
+def test_the_floor_from_the_first_rows_equals_the_floor_from_all(step):
+    """The resolution term of the noise floor is skipped when the smallest step of the first
+    rows already cannot win the max: the same floor as scanning every row."""
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((30_000, 3)) * 0.01 + 1.0
+    if step:
+        x = np.round(x / step) * step
+    stat = stillness.moving_variance(x, 25)
+    full = max(float(np.quantile(stat, 0.1)), 3.0 * stillness._resolution(x) ** 2 / 12.0, 1e-300)
+    head = x[: stillness._HEAD + 1]
+    assert stillness._floor(stat, 0.1, head, lambda: x) == full
+
+
+def _log_of(sim):
+    """A simulated continuous log as load_log reads it (no file)."""
+    return load_log(Table("simulated.csv", list(sim.columns), dict(sim.columns)))
+
+
+def test_segment_statistics_serve_as_the_pose_spread_and_means():
+    """poses_from_log takes each pose's spread from its still segment (computed as _std
+    computes it) and the means from running sums: the numbers of the plain computations."""
+    sim = simulate_continuous("paper", seed=4, samples=(3000, 5000))
+    log = _log_of(sim)
+    found = poses_from_log(log)
+    assert found.detection is not None
+    for entry, segment, accel, mag in zip(
+        found.entries, found.detection.segments, found.accel, found.mag, strict=True
+    ):
+        assert entry["std"] == log_poses._std(accel)
+        np.testing.assert_array_equal(np.array(segment.mean), accel.mean(axis=0))
+        assert len(mag) == entry["samples"]
+    np.testing.assert_array_equal(found.means("accel"), [p.mean(axis=0) for p in found.accel])
+    np.testing.assert_array_equal(found.means("mag"), [p.mean(axis=0) for p in found.mag])
+
+
+def test_drift_of_the_rests_from_sums_equals_the_two_pass_one():
+    """The "still intervals move" check takes each rest's spread from its segment and the
+    halves' means from one pass of sums: the two-pass figure within rounding."""
+    sim = simulate_continuous("paper", seed=8, samples=(2000, 3000), move_seconds=(3.0, 5.0))
+    log = _log_of(sim)
+    segments = detect_still(log.accel, log.gyro, window=25, min_samples=50).segments
+    spans = np.array([(s.start, s.stop) for s in segments if not s.pieces])
+    starts, stops = spans[:, 0], spans[:, 1]
+    mids = (starts + stops) // 2
+    y = log.accel / stillness.power_of_two(log.accel)
+    halves = np.column_stack([starts, mids, mids, stops]).reshape(-1, 2)
+    hmean = np.array([y[a:b].mean(axis=0) for a, b in halves])
+    var = np.array([y[a:b].var(axis=0).sum() for a, b in spans])
+    n1, n2 = mids - starts, stops - mids
+    jump2 = np.sum((hmean[1::2] - hmean[0::2]) ** 2, axis=1)
+    drift = np.sqrt(np.maximum(jump2 - var * (1.0 / n1 + 1.0 / n2), 0.0))
+    means = np.array([y[a:b].mean(axis=0) for a, b in spans])
+    expected = float(np.median(drift)) / float(np.median(np.linalg.norm(means, axis=1)))
+    assert log_poses._still_drift(log.accel, "accel", segments) == pytest.approx(expected, rel=1e-9)

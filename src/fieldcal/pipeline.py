@@ -64,7 +64,7 @@ def _check_poses(poses: PoseSet, method: str, log: Log, rate: float | None) -> N
             )
             + f": {advice}"
         )
-    means = {name: np.array([p.mean(axis=0) for p in samples]) for name, samples in sensors}
+    means = {name: poses.means(name) for name, _ in sensors}
     try:
         check_spread(stats_from_means(means.get("accel"), means.get("mag")))
     except ValueError as exc:

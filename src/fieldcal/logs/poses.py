@@ -22,7 +22,7 @@ import math
 import numbers
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, TypedDict
 
 import numpy as np
@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .log import Log
-from .stillness import Segment, StillResult, detect_still, power_of_two
+from .stillness import Segment, StillResult, _column_sums, detect_still, power_of_two
 
 __all__ = [
     "MOTION_LIMIT",
@@ -126,10 +126,24 @@ class PoseSet:
     rate: float | None
     source: str = "still"
     windows: WindowCut | None = None
+    _means: dict[str, Array] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def n(self) -> int:
         return len(self.entries)
+
+    def means(self, sensor: str) -> Array:
+        """(N, 3): each pose's mean reading of ``sensor`` (``"accel"`` or ``"mag"``), the
+        numbers ``p.mean(axis=0)`` gives for each pose ``p``, computed once (by running sums
+        along each column: numpy adds the rows in the same order, more slowly)."""
+        if sensor not in ("accel", "mag"):
+            raise ValueError(f"sensor must be 'accel' or 'mag', got {sensor!r}")
+        if sensor not in self._means:
+            samples: list[Array] | None = getattr(self, sensor)
+            if samples is None:
+                raise ValueError(f"no {sensor} poses")
+            self._means[sensor] = np.array([_mean(p) for p in samples]).reshape(-1, 3)
+        return self._means[sensor]
 
     def record(self) -> dict[str, Any]:
         """How the poses were made, for the JSON: the source, its parameters, the rate."""
@@ -338,24 +352,34 @@ def _field_norm(means: Array, sensor: str) -> float:
 def _still_drift(ref: Array, sensor: str, segments: Sequence[Segment]) -> float | None:
     """Median over the still intervals (those of one run) of the change of their mean from
     the first half to the second, the white noise of their own readings taken out, against
-    the field's norm; None without such an interval."""
-    spans = np.array([(s.start, s.stop) for s in segments if not s.pieces], dtype=np.int64)
-    spans = spans.reshape(-1, 2)
-    spans = spans[spans[:, 1] - spans[:, 0] >= _FEWEST]
-    if len(spans) == 0:
+    the field's norm; None without such an interval.
+
+    From one pass of sums over the halves; each interval's spread and mean are the
+    detector's (:class:`Segment`), so its samples are not read again.
+    """
+    kept = [s for s in segments if not s.pieces and s.stop - s.start >= _FEWEST]
+    if not kept:
         return None
-    starts, stops = spans[:, 0], spans[:, 1]
+    starts = np.array([s.start for s in kept], dtype=np.int64)
+    stops = np.array([s.stop for s in kept], dtype=np.int64)
     mids = (starts + stops) // 2
-    scale = power_of_two(ref)
-    y = ref / scale
-    hmean, _, hcount = _run_stats(
-        y, np.column_stack([starts, mids]).ravel(), np.column_stack([mids, stops]).ravel()
-    )
-    mean, var, _ = _run_stats(y, starts, stops)
-    jump2 = np.sum((hmean[1::2] - hmean[0::2]) ** 2, axis=1)
-    expected = var.sum(axis=1) * (1.0 / hcount[0::2] + 1.0 / hcount[1::2])
+    means = np.array([s.mean for s in kept])
+    scale = power_of_two(means)  # any power of two near the readings: exact, no overflow
+    edges = np.column_stack([starts, mids, stops]).ravel()
+    cut = edges[:-1] if edges[-1] >= len(ref) else edges  # reduceat's indices stay below n
+    with np.errstate(over="ignore", invalid="ignore"):
+        sums = np.add.reduceat(ref, cut, axis=0)
+    if not np.isfinite(sums).all():  # readings near the float range: sum them scaled
+        sums = np.add.reduceat(ref / scale, cut, axis=0) * scale
+    n1, n2 = (mids - starts).astype(float), (stops - mids).astype(float)
+    # in units of the power of two (exact), so that no square overflows
+    first = sums[0::3] / n1[:, None] / scale
+    second = sums[1::3] / n2[:, None] / scale
+    total = 3.0 * (np.array([s.std for s in kept]) / scale) ** 2  # Σ of the axes' variances
+    jump2 = np.sum((second - first) ** 2, axis=1)
+    expected = total * (1.0 / n1 + 1.0 / n2)
     drift = np.sqrt(np.maximum(jump2 - expected, 0.0))
-    return float(np.median(drift)) / _field_norm(mean, sensor)
+    return float(np.median(drift)) / _field_norm(means / scale, sensor)
 
 
 def _measure(log: Log, hz: float | None, window: float | None) -> tuple[_Motion, Rows, Rows]:
@@ -575,7 +599,8 @@ def poses_from_log(
         else:
             groups.append(slice(s.start, s.stop))  # a view, not a copy
         entry["samples"] = s.samples
-        entry["std"] = _std(ref[groups[-1]])
+        # the detector computed the spread as _std(ref[rows]) does, on the same readings
+        entry["std"] = s.std if s.samples > 1 else None
         entries.append(entry)
     found = PoseSet(
         accel=None if log.accel is None else [log.accel[g] for g in groups],
@@ -586,16 +611,14 @@ def poses_from_log(
         source="still",
     )
     # the detection's means are the checked sensor's (accelerometer, else magnetometer)
-    _orient(found, [np.array([s.mean for s in detection.segments]), *_other_means(log, groups)])
+    other = [found.means("mag")] if log.accel is not None and log.mag is not None else []
+    _orient(found, [np.array([s.mean for s in detection.segments]), *other])
     return found
 
 
-def _other_means(log: Log, groups: list[Rows | slice]) -> list[Array]:
-    """Pose means of the magnetometer beside an accelerometer (still detection ran on the
-    accelerometer and gives its means)."""
-    if log.accel is None or log.mag is None:
-        return []
-    return [np.array([log.mag[g].mean(axis=0) for g in groups])]
+def _mean(x: Array) -> Array:
+    """``x.mean(axis=0)``, the same numbers, faster (:func:`~.stillness._column_sums`)."""
+    return _column_sums(x) / len(x)
 
 
 def _orient(found: PoseSet, means: list[Array]) -> None:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,29 +129,34 @@ def _cumulative(x: Array) -> Array:
     return out
 
 
-def _window_sums(
-    c: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None
-) -> tuple[Array, Array]:
-    """Sums over each row's window from cumulative sums ``c`` (n + 1 rows), and the counts.
+def _window_means(
+    c: Array,
+    window: int,
+    bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+    out: Array | None = None,
+) -> Array:
+    """Means over each row's window from cumulative sums ``c`` (n + 1 rows): each window's sum
+    divided by its count of rows (into ``out`` when given).
 
     Without ``bounds`` the window is centred and truncated at the log's ends: the middle rows
-    are one subtraction of two slices, no gathered copies.
+    are one subtraction of two slices and one division by the full window's count, no
+    gathered copies.
     """
     n = len(c) - 1
+    shape = (n,) + (1,) * (c.ndim - 1)
     if bounds is not None:
         lo, hi = bounds
-        count = (hi - lo).astype(float)
-        return c[hi] - c[lo], count
+        count = (hi - lo).astype(float).reshape(shape)
+        return np.divide(np.subtract(c[hi], c[lo], out=out), count, out=out)
     half = window // 2
     a, b = min(half, n), max(min(half, n), n - half)  # rows a..b-1 have full windows
     ends = np.concatenate([np.arange(a), np.arange(b, n)])
     lo, hi = np.clip(ends - half, 0, n), np.clip(ends + half + 1, 0, n)
-    sums = np.empty((n, *c.shape[1:]))
-    np.subtract(c[a + half + 1 : b + half + 1], c[a - half : b - half], out=sums[a:b])
-    sums[ends] = c[hi] - c[lo]
-    count = np.full(n, float(2 * half + 1))
-    count[ends] = hi - lo
-    return sums, count
+    means = np.empty((n, *c.shape[1:])) if out is None else out
+    middle = np.subtract(c[a + half + 1 : b + half + 1], c[a - half : b - half], out=means[a:b])
+    middle /= float(2 * half + 1)
+    means[ends] = (c[hi] - c[lo]) / (hi - lo).astype(float).reshape((len(ends), *shape[1:]))
+    return means
 
 
 def moving_variance(
@@ -165,11 +171,21 @@ def moving_variance(
 def _moving_variance(
     x: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None
 ) -> Array:
-    x = x - x.mean(axis=0)  # centring keeps the cumulative sums from losing precision
-    s1, count = _window_sums(_cumulative(x), window, bounds)
-    s2, _ = _window_sums(_cumulative(x * x), window, bounds)
-    mean = s1 / count[:, None]
-    var = s2 / count[:, None] - mean**2
+    return _variance(_sums(x), window, bounds)
+
+
+def _variance(
+    sums: tuple[Array, Array],
+    window: int,
+    bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+    work: Array | None = None,
+) -> Array:
+    """The moving variance from the cumulative sums of :func:`_sums`: every step writes into
+    the window means (the same operations, in the same order, as with temporaries), the
+    mean squares into ``work`` (n, k) when given."""
+    mean = _window_means(sums[0], window, bounds)
+    var = _window_means(sums[1], window, bounds, out=work)
+    var -= np.square(mean, out=mean)
     np.maximum(var, 0.0, out=var)
     if var.shape[1] == 3:  # as .sum(axis=1) (same order), without a strided reduction
         return var[:, 0] + var[:, 1] + var[:, 2]
@@ -179,8 +195,7 @@ def _moving_variance(
 def _moving_mean(
     x: Array, window: int, bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None
 ) -> Array:
-    sums, count = _window_sums(_cumulative(x), window, bounds)
-    return sums / count
+    return _window_means(_cumulative(x), window, bounds)
 
 
 def power_of_two(x: Array) -> float:
@@ -234,16 +249,66 @@ def _segments(segment: object, n: int) -> NDArray[np.int64] | None:
     return array.astype(np.int64, copy=False)
 
 
-def _floor(stat: Array, quantile: float, resolution: float) -> float:
+def _floor(stat: Array, quantile: float, head: Array, readings: Callable[[], Array]) -> float:
+    """``max(quantile of stat, 3 · step² / 12, 1e-300)``, ``step`` the resolution of the
+    readings (``head`` their first rows, ``readings()`` all of them)."""
+    floor = _quantile(stat, quantile)
     # quantised sensors can show exactly zero variance in a window; the floor is at least the
-    # variance of rounding to the sensor's step (step² / 12 per axis)
-    return max(float(np.quantile(stat, quantile)), 3.0 * resolution**2 / 12.0, 1e-300)
+    # variance of rounding to the sensor's step (step² / 12 per axis). The smallest step of
+    # the first rows bounds the step from above: when even that bound cannot win the max,
+    # the scan of every row is not needed.
+    bound = _smallest_step(head)
+    if 3.0 * bound**2 / 12.0 < floor:
+        return max(floor, 1e-300)
+    return max(floor, 3.0 * _resolution(readings()) ** 2 / 12.0, 1e-300)
+
+
+#: Rows whose smallest step is tried first as a bound of the readings' resolution.
+_HEAD = 4096
+
+
+def _smallest_step(x: Array) -> float:
+    """The smallest non-zero change between successive rows (inf when none)."""
+    steps = np.abs(np.diff(x, axis=0))
+    return float(np.min(steps, where=steps > 0, initial=np.inf))
 
 
 def _resolution(x: Array) -> float:
-    steps = np.abs(np.diff(x, axis=0))
-    smallest = float(np.min(steps, where=steps > 0, initial=np.inf))
+    smallest = _smallest_step(x)
     return smallest if math.isfinite(smallest) else 0.0
+
+
+def _quantile(x: Array, q: float) -> float:
+    """``np.quantile(x, q)`` of a 1-D float array (the default, linear method), the same
+    number: the two order statistics around ``(n − 1) q`` by one partition (numpy's
+    single-rank partition is a vectorised quickselect; ``np.quantile`` asks for several ranks
+    at once and takes a slower one) and numpy's interpolation."""
+    n = len(x)
+    virtual = (n - 1) * q
+    if n == 0 or not 0.0 <= virtual < n - 1:
+        return float(np.quantile(x, q))
+    below = math.floor(virtual)
+    part = np.partition(x, below)
+    a, b = float(part[below]), float(part[below + 1 :].min())
+    t = virtual - below
+    # numpy's _lerp: from the nearer end, so that t = 0 and t = 1 give the ends exactly
+    return b - (b - a) * (1 - t) if t >= 0.5 else a + (b - a) * t
+
+
+def _median_columns(x: Array, rows: NDArray[np.bool_] | None) -> Array:
+    """``np.median(x[rows], axis=0)`` (all rows for ``None``), the same numbers: the middle
+    pair of each column by one partition, and their mean as numpy takes it."""
+    out = np.empty(x.shape[1])
+    for j in range(x.shape[1]):
+        column = x[:, j] if rows is None else x[:, j][rows]
+        m = len(column)
+        if m == 0:
+            return np.asarray(np.median(x if rows is None else x[rows], axis=0))
+        half = m // 2
+        part = np.partition(column, half)
+        upper = part[half]
+        out[j] = upper if m % 2 else np.mean([part[:half].max(), upper])
+    return out
 
 
 def _runs(mask: NDArray[np.bool_], breaks: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -330,8 +395,12 @@ def detect_still(
     accel = raw / scale
 
     with np.errstate(over="ignore", under="ignore"):  # a threshold beyond range is refused below
-        var_a = _moving_variance(accel, window, bounds)
-        floor_a = _floor(var_a, floor_quantile, _resolution(accel))
+        # the cumulative sums serve the moving variance here and the runs' statistics below
+        work = np.empty_like(accel)  # the centred readings, then the windows' mean squares
+        sums = _sums(accel, work)
+        var_a = _variance(sums, window, bounds, work)
+        del work
+        floor_a = _floor(var_a, floor_quantile, accel[: _HEAD + 1], lambda: accel)
         thr_a = np.float64(factor) ** 2 * floor_a
         if threshold is not None:
             thr_a = 3.0 * (np.float64(threshold) / scale) ** 2
@@ -346,11 +415,19 @@ def detect_still(
         rates = _readings(gyro, "gyro")
         if len(rates) != n:
             raise InputError(f"gyro has {len(rates)} samples but accel has {n}; pass equal rows")
-        rates = rates / power_of_two(rates)
+        unit = power_of_two(rates)
+        rates = rates / unit
+        head = rates[: _HEAD + 1].copy()
         # the gyro's bias is its median over the samples the accelerometer calls still
-        bias = np.median(rates[still], axis=0) if np.any(still) else np.median(rates, axis=0)
-        energy = _moving_mean(np.sum((rates - bias) ** 2, axis=1), window, bounds)
-        floor_g = _floor(energy, floor_quantile, _resolution(rates))
+        bias = _median_columns(rates, still if np.any(still) else None)
+        d = np.subtract(rates, bias, out=rates)  # the scaled rates are made again if needed
+        np.multiply(d, d, out=d)  # as ** 2; the axes summed as .sum(axis=1) sums them
+        energy = _moving_mean(d[:, 0] + d[:, 1] + d[:, 2], window, bounds)
+        del rates, d
+        gyro_readings = gyro
+        floor_g = _floor(
+            energy, floor_quantile, head, lambda: _readings(gyro_readings, "gyro") / unit
+        )
         with np.errstate(over="ignore"):
             still &= energy < np.float64(factor) ** 2 * floor_g
 
@@ -358,15 +435,16 @@ def detect_still(
     runs[:, 0] += trim
     runs[:, 1] -= trim
     runs = runs[runs[:, 1] - runs[:, 0] >= max(1, min(min_samples, 3))]
-    sums = _sums(accel) if len(runs) else None
     # quiet windows can still drift slowly (a slow turn): such a run is cut into pieces of
     # min_samples and only the pieces that are still as a whole are kept
     runs = _split_drifting(sums, runs, thr_a, max(min_samples, window))
     piece = np.searchsorted(breaks, runs[:, 0], side="right")  # each run's segment
     tol = merge_sigma * np.sqrt(floor_a / 3.0)
     groups = _merge(accel, sums, runs, piece, max_gap, tol, thr_a)
+    longest = max((int(np.sum(runs[g, 1] - runs[g, 0])) for g in groups), default=0)
+    work = np.empty(9 * longest)  # reused by every segment's statistics: no new pages each
     segments = [
-        s for s in (_segment(accel, runs[g], scale) for g in groups) if s.samples >= min_samples
+        s for s in (_segment(raw, runs[g], work) for g in groups) if s.samples >= min_samples
     ]
     return StillResult(
         segments=tuple(segments),
@@ -386,10 +464,42 @@ def _var(c1: Array, c2: Array, runs: NDArray[np.int64]) -> tuple[Array, Array]:
     return mean, var
 
 
-def _sums(accel: Array) -> tuple[Array, Array]:
-    """Cumulative sums of the centred readings and of their squares (computed once)."""
-    x = accel - accel.mean(axis=0)
-    return _cumulative(x), _cumulative(x * x)
+def _sums(x: Array, work: Array | None = None) -> tuple[Array, Array]:
+    """Cumulative sums of the centred readings and of their squares (computed once, for the
+    moving variance and for the runs' statistics); ``work``, like ``x``, is written into."""
+    centred = np.empty_like(x, order="C") if work is None else work
+    # centring keeps the cumulative sums from losing precision; the mean's running sums go
+    # through the centred copy's memory before it is written
+    mean = _column_sums(x, centred) / len(x)
+    np.subtract(x, mean, out=centred)
+    c1 = _cumulative(centred)
+    return c1, _cumulative(np.multiply(centred, centred, out=centred))
+
+
+def _column_sums(x: Array, work: Array | None = None) -> Array:
+    """``x.sum(axis=0)`` of an (n, k) array, the same numbers: numpy adds the rows of a
+    C-ordered array one after the other, which is what a running sum does (faster, as its
+    inner loop runs along each column rather than across one row at a time). ``work``, of
+    at least ``x.size`` floats, takes the running sums."""
+    if x.ndim != 2 or len(x) == 0 or not x.flags.c_contiguous:
+        return np.asarray(x.sum(axis=0))
+    out = None if work is None else work.reshape(-1)[: x.size].reshape(x.shape[::-1])
+    return np.add.accumulate(x.T, axis=1, out=out)[:, -1].copy()
+
+
+def _mean_var(x: Array, work: Array | None = None) -> tuple[Array, Array]:
+    """``x.mean(axis=0)`` and ``x.var(axis=0)`` of an (n, k) C-ordered array, the same numbers
+    (numpy's two passes: the mean, then the mean square of the deviations from it) with one
+    sum of the rows for both. ``work``, of at least ``2 x.size`` floats, is written into
+    instead of new arrays."""
+    n = len(x)
+    if work is None:
+        work = np.empty(2 * x.size)
+    d = work.reshape(-1)[: x.size].reshape(x.shape)
+    spare = work.reshape(-1)[x.size : 2 * x.size]
+    mean = _column_sums(x, spare) / n
+    np.subtract(x, mean, out=d)
+    return mean, _column_sums(np.multiply(d, d, out=d), spare) / n
 
 
 def _split_drifting(
@@ -447,15 +557,23 @@ def _merge(
     return out
 
 
-def _segment(accel: Array, runs: NDArray[np.int64], scale: float) -> Segment:
-    """The segment of ``runs`` in the readings' units (``accel`` is divided by ``scale``)."""
+def _segment(raw: Array, runs: NDArray[np.int64], work: Array | None = None) -> Segment:
+    """The segment of ``runs`` of the readings ``raw``; its statistics are computed on the
+    readings over the power of two nearest their largest value, as
+    :func:`fieldcal.logs.poses.poses_from_log` reports a pose's spread (the same numbers, so
+    it takes them from here). ``work``, of at least 9 floats per sample, is written into."""
     pieces = tuple((int(a), int(b)) for a, b in runs)
     if len(pieces) == 1:
-        part = accel[pieces[0][0] : pieces[0][1]]  # a view: one run needs no gathered copy
+        part = raw[pieces[0][0] : pieces[0][1]]  # a view: one run needs no gathered copy
     else:
-        part = accel[np.concatenate([np.arange(a, b) for a, b in pieces])]
-    std = float(np.sqrt(np.mean(part.var(axis=0)))) * scale
-    mean = part.mean(axis=0) * scale
+        part = raw[np.concatenate([np.arange(a, b) for a, b in pieces])]
+    scale = power_of_two(part)
+    if work is None:
+        work = np.empty(9 * len(part))
+    scaled = np.divide(part, scale, out=work[: part.size].reshape(part.shape))
+    mean, var = _mean_var(scaled, work[part.size :])
+    std = float(np.sqrt(np.mean(var))) * scale
+    mean = mean * scale
     return Segment(
         pieces[0][0],
         pieces[-1][1],

@@ -475,29 +475,50 @@ def _sensor_summary(
                 unit = power_of_two(max(float(np.abs(p).max()) for p in poses))
                 mo = _moments(poses, counts, extremes, scratch, unit)
         return mo, counts, None
-    # trimming sorts every pose's samples: they are copied side by side once, axes as rows,
-    # into work space that every later step reuses
+    # trimming selects order statistics of every pose: the samples are copied side by side
+    # once, axes as rows, into work space that every later step reuses
     k = int(counts.sum())
-    work = scratch.floats(13, k)
+    work = scratch.floats(7, k)
     x = np.concatenate([p.T for p in poses], axis=1, out=work[:3])
-    lo, hi = float(x.min()), float(x.max())  # NaN propagates through both
+    low, high = x.min(axis=1), x.max(axis=1)
+    lo, hi = float(low.min()), float(high.max())  # NaN propagates through both
     if not (np.isfinite(lo) and np.isfinite(hi)) or max(-lo, hi) > LARGEST:
         _check_values(poses, name)
     unit = power_of_two(max(-lo, hi))
     if unit != 1.0:
         x /= unit  # exact; the trimming's result does not depend on it
-    found = unsteady(x, counts, work[3:])
+        # each axis's extremes divided as its samples were: the same numbers as found again
+        low, high = low / unit, high / unit
+    found = unsteady(x, counts, work[3:], extremes=(low, high))
     # the deviations from each pose's median are Eq. 5/7's shifted samples, ready-made
     d, d2 = found.deviations, found.squares
     if found.cut is not None:  # the kept ones, into rows of the work space now free
         counts = counts - found.trimmed
-        keep, kept = ~found.cut, int(counts.sum())
-        d = np.compress(keep, d, axis=1, out=work[3:6, :kept])
-        d2 = np.compress(keep, d2, axis=1, out=work[6:9, :kept])
+        # the kept deviations over the squares (recomputed from them), their squares over
+        # the deviations: both are read before they are overwritten
+        d = _kept(found.deviations, found.cut, work[:3, : int(counts.sum())])
+        d2 = np.multiply(d, d, out=work[3:6, : d.shape[1]])  # as compressing the squares gives
     mo = _Moments.empty(found.medians.T * unit, unit)
     mo.add_deviations(d, d2, np.arange(len(counts)), counts)
     mo.extremes = (lo, hi)
     return mo, counts, found.trimmed
+
+
+def _kept(x: Array, cut: NDArray[np.bool_], out: Array) -> Array:
+    """The columns of ``x`` not ``cut``, in order, into ``out``: the runs between the cut
+    columns copied as slices when they are few (a bump cuts a handful of samples), else a
+    boolean index per row."""
+    where = np.flatnonzero(cut)
+    if len(where) > 1000:
+        keep = ~cut
+        for row, target in zip(x, out, strict=True):
+            target[:] = row[keep]
+        return out
+    done = 0
+    for a, b in zip([0, *(where + 1).tolist()], [*where.tolist(), x.shape[1]], strict=True):
+        out[:, done : done + b - a] = x[:, a:b]
+        done += b - a
+    return out
 
 
 def summarize(accel: object, mag: object = None, *, trim: bool = False) -> PoseStats:

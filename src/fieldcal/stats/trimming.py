@@ -11,6 +11,7 @@ readings do not vary within poses (scale 0, e.g. a coarse quantiser) is not trim
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,10 @@ Array = NDArray[np.float64]
 CUT = 25.9
 #: Fewest samples in a pose for a robust median.
 MIN_SAMPLES = 10
+#: Poses with at least this many samples have their order statistics selected one pose at a
+#: time (linear-time partitions); the smaller ones between them share one sort, which costs
+#: less than a few numpy calls per pose.
+SELECT = 2048
 
 
 def trim_unsteady(
@@ -46,8 +51,10 @@ def trim_unsteady(
         Samples kept and cut per pose. A pose never loses more than half its samples: the
         median stays inside what is kept.
     """
-    x = np.ascontiguousarray(stacked.T)  # a copy: unsteady overwrites it
-    found = unsteady(x, counts, np.empty((10, x.shape[1])))
+    x = np.array(
+        stacked.T, order="C"
+    )  # a copy (even of an F-ordered array): unsteady overwrites it
+    found = unsteady(x, counts, np.empty((4, x.shape[1])))
     if found.cut is None:
         return stacked, counts, found.trimmed
     return stacked[~found.cut], counts - found.trimmed, found.trimmed
@@ -76,7 +83,13 @@ class Unsteady:
     squares: Array
 
 
-def unsteady(x: Array, counts: NDArray[np.int64], work: Array) -> Unsteady:
+def unsteady(
+    x: Array,
+    counts: NDArray[np.int64],
+    work: Array,
+    *,
+    extremes: tuple[Array, Array] | None = None,
+) -> Unsteady:
     """The samples to cut, for concatenated poses with the axes as rows.
 
     Parameters
@@ -86,53 +99,150 @@ def unsteady(x: Array, counts: NDArray[np.int64], work: Array) -> Unsteady:
         deviations from their pose's median (``Unsteady.squares``).
     counts : (N,) int array
         Samples per pose.
-    work : (10, ΣΔ) array
-        Work space (overwritten): the steps write into it rather than into temporaries of
-        the data's size; the deviations returned live in it.
+    work : (4, ΣΔ) array
+        Work space (overwritten; more rows are allowed and left alone): the steps write into
+        it rather than into temporaries of the data's size; the deviations returned live in
+        its rows 0 to 2.
+    extremes : ((3,), (3,)) arrays, optional
+        The smallest and largest sample of each axis, when already known (else computed).
+
+    A large pose is worked through one axis at a time while its samples are in the CPU's
+    cache (copy, order statistics, deviations, squares), its copy in one small array reused
+    by every pose; runs of small poses share one sort.
     """
     n = len(counts)
     trimmed = np.zeros(n, dtype=np.int64)
-    keys, scratch, deviations, d2 = work[:3], work[3:6], work[6:9], work[9]
-    index = np.repeat(np.arange(n), counts)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    deviations, row = work[:3], work[3]
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     eligible = counts >= MIN_SAMPLES
     # beside the medians, two order statistics per pose that bound its MAD from below
-    lo = (counts[eligible] - 1) // 2
-    a = starts[eligible] + lo // 2
-    medians, (y_a, y_b) = _segment_medians(x, index, starts, counts, keys, scratch, (a, a + lo + 1))
-    np.subtract(x, np.repeat(medians, counts, axis=1), out=deviations)
-    squares = np.multiply(deviations, deviations, out=x)  # the samples are not needed again
+    lo = (counts - 1) // 2
+    a = lo // 2
+    ranks = np.column_stack([a, lo, counts // 2, a + lo + 1])
+    ranks[~eligible, 0] = ranks[~eligible, 3] = -1  # not needed: no MAD bound for them
+    low, high = (x.min(axis=1), x.max(axis=1)) if extremes is None else extremes
+    span = _span(low, high)
+    stats = np.full((4, 3, n), np.nan)
+    copy = np.empty(_largest(counts, counts >= SELECT))  # the selection reorders its input
+    for i, s, e, distinct, back, wanted in _large(starts, counts, ranks):
+        for axis in range(3):
+            part = copy[: e - s]
+            np.copyto(part, x[axis, s:e])
+            picked = np.array(_select(part, distinct))[back]
+            stats[wanted, axis, i] = _keyed(picked, i, float(low[axis]), float(span[axis]))
+            median = 0.5 * (stats[1, axis, i] + stats[2, axis, i])
+            d = np.subtract(x[axis, s:e], median, out=deviations[axis, s:e])
+            np.multiply(d, d, out=x[axis, s:e])  # the samples are not needed again
+    runs = list(_small(starts, counts))
+    keys = np.empty((3, max((c1 - c0 for _, _, c0, c1 in runs), default=0)))
+    for p0, p1, c0, c1 in runs:
+        block = keys[:, : c1 - c0]
+        np.copyto(block, x[:, c0:c1])  # sorted in place: a copy
+        stats[:, :, p0:p1] = _sorted(block, p0, counts[p0:p1], ranks[p0:p1], low, span)
+        median = 0.5 * (stats[1, :, p0:p1] + stats[2, :, p0:p1])
+        d = deviations[:, c0:c1]
+        np.subtract(x[:, c0:c1], np.repeat(median, counts[p0:p1], axis=1), out=d)
+        np.multiply(d, d, out=x[:, c0:c1])
+    medians = 0.5 * (stats[1] + stats[2])
+    squares = x
+    y_a, y_b = stats[0][:, eligible], stats[3][:, eligible]
     found = Unsteady(None, trimmed, medians, deviations, squares)
-    if not eligible.any() or _none_cut(squares, medians[:, eligible], y_a, y_b, d2):
+    if not eligible.any() or _none_cut(squares, medians[:, eligible], y_a, y_b, row):
         return found
-    absolute = np.abs(deviations, out=scratch)
-    mads, _ = _segment_medians(absolute, index, starts, counts, keys, scratch)
+    mads = _mads(deviations, starts, counts, ranks[:, 1:3])
     scale = 1.4826 * _median(mads[:, eligible])
     usable = scale > 0
     if not usable.any():
         return found
-    if usable.all():
-        z = np.divide(deviations, scale[:, None], out=scratch)
-    else:
-        z = deviations[usable] / scale[usable, None]
-    np.einsum("ij,ij->j", z, z, out=d2)
-    d2 *= 3.0 / usable.sum()
-    cut = d2 > CUT
-    if not cut.any():
+    where = _beyond(deviations, squares, scale, usable, row)
+    if where.size == 0:
         return found
-    cut &= np.repeat(eligible, counts)
-    trimmed = np.add.reduceat(cut, starts, dtype=np.int64)
+    pose = np.searchsorted(starts, where, side="right") - 1
+    where, pose = where[eligible[pose]], pose[eligible[pose]]
+    trimmed = np.bincount(pose, minlength=n).astype(np.int64)
     too_many = trimmed > counts // 2  # a pose mostly "unsteady": keep it whole, let tests judge it
     if too_many.any():
-        cut &= ~np.repeat(too_many, counts)
+        where = where[~too_many[pose]]
         trimmed[too_many] = 0
-    if not cut.any():
+    if where.size == 0:
         return found
+    cut = np.zeros(x.shape[1], dtype=bool)
+    cut[where] = True
     return Unsteady(cut, trimmed, medians, deviations, squares)
 
 
+def _mads(
+    deviations: Array,
+    starts: NDArray[np.int64],
+    counts: NDArray[np.int64],
+    ranks: NDArray[np.int64],
+) -> Array:
+    """(3, N): each pose's median absolute deviation per axis. The keys' range is that of
+    the absolute deviations, known once all are computed: the large poses' selected values
+    wait for it, and the small poses' absolute deviations are kept for their sort."""
+    n = len(counts)
+    stats = np.full((2, 3, n), np.nan)
+    low, high = np.full(3, np.inf), np.full(3, -np.inf)
+    pending = []
+    part_of = np.empty(_largest(counts, counts >= SELECT))
+    for i, s, e, distinct, back, wanted in _large(starts, counts, ranks):
+        picked = np.empty((3, len(back)))
+        for axis in range(3):
+            part = np.abs(deviations[axis, s:e], out=part_of[: e - s])
+            low[axis] = min(low[axis], part.min())
+            high[axis] = max(high[axis], part.max())
+            picked[axis] = np.array(_select(part, distinct))[back]
+        pending.append((i, wanted, picked))
+    small = list(_small(starts, counts))
+    absolute = np.empty((3, _largest(counts, counts < SELECT, total=True)))
+    blocks = []
+    done = 0
+    for _, _, c0, c1 in small:
+        part = np.abs(deviations[:, c0:c1], out=absolute[:, done : done + c1 - c0])
+        blocks.append(part)
+        done += c1 - c0
+        np.minimum(low, part.min(axis=1), out=low)
+        np.maximum(high, part.max(axis=1), out=high)
+    span = _span(low, high)
+    for i, wanted, picked in pending:
+        for axis in range(3):
+            stats[wanted, axis, i] = _keyed(picked[axis], i, float(low[axis]), float(span[axis]))
+    for (p0, p1, _, _), part in zip(small, blocks, strict=True):
+        stats[:, :, p0:p1] = _sorted(part, p0, counts[p0:p1], ranks[p0:p1], low, span)
+    return np.asarray(0.5 * (stats[0] + stats[1]))
+
+
+def _beyond(
+    deviations: Array, squares: Array, scale: Array, usable: NDArray[np.bool_], work: Array
+) -> NDArray[np.intp]:
+    """Positions of the samples whose ``d² = (3 / axes) Σ (deviation / scale)²`` (over the
+    usable axes) exceeds :data:`CUT`.
+
+    ``d²`` is written plainly, ``(z₀² + z₁²) + z₂²`` with ``z = deviation / scale``: the
+    numbers ``np.einsum("ij,ij->j", z, z)`` gives for a (3, ΣΔ) array. It is computed only
+    for the few candidates that ``squares`` weighted by ``1 / scale²`` (one product, no
+    division of every sample) does not rule out; that weighted sum and ``d²`` differ by a few
+    roundings, far inside the margin of 10⁻⁹.
+    """
+    factor = 3.0 / usable.sum()
+    with np.errstate(divide="ignore"):
+        weights = np.where(usable, 1.0 / (scale * scale), 0.0)
+    np.matmul(weights, squares, out=work)
+    candidates = np.flatnonzero(work > CUT * (1.0 - 1e-9) / factor)
+    if candidates.size == 0:
+        return candidates
+    rows = np.flatnonzero(usable)
+    z = deviations[np.ix_(rows, candidates)] / scale[rows, None]
+    d2 = z[0] * z[0]
+    for row in z[1:]:
+        d2 += row * row
+    d2 *= factor
+    return candidates[d2 > CUT]
+
+
 def _none_cut(squares: Array, medians: Array, y_a: Array, y_b: Array, d2: Array) -> bool:
-    """True when no sample can be cut, proven without the MADs (which take a second sort).
+    """True when no sample can be cut, proven without the MADs (which take a second pass of
+    selection).
 
     In a pose's sorted samples ``y``, take positions ``a`` and ``b = a + lo + 1`` around the
     median ``m`` (``lo = (n − 1) // 2``). A deviation ``|y − m|`` below
@@ -158,36 +268,100 @@ def _median(x: Array) -> Array:
     return np.asarray((ranked[:, (k - 1) // 2] + ranked[:, k // 2]) / 2.0)
 
 
-def _segment_medians(
-    x: Array,
-    index: NDArray[np.intp],
-    starts: NDArray[np.int64],
-    counts: NDArray[np.int64],
-    keys: Array,
-    work: Array,
-    positions: tuple[NDArray[np.int64], ...] = (),
-) -> tuple[Array, list[Array]]:
-    """Per-pose medians of concatenated poses, (3, ΣΔ) in, (3, N) out, with one sort; and the
-    sorted samples at ``positions`` (each an array of indices into the concatenation).
+def _largest(counts: NDArray[np.int64], which: NDArray[np.bool_], *, total: bool = False) -> int:
+    """The most samples of the poses ``which`` (their sum with ``total``); 0 for none."""
+    chosen = counts[which]
+    return int(chosen.sum() if total else chosen.max(initial=0))
 
-    Sorting ``pose · span + (x − min)`` orders the samples by pose, then by value, so each
-    pose's median sits at fixed positions of the sorted array (rounding of the key is far
-    below any sensor's resolution). ``index`` holds each sample's pose; ``keys`` and ``work``
-    are scratch arrays like ``x`` (``work`` may be ``x`` itself: it is read first).
-    """
-    lo = starts + (counts - 1) // 2
-    hi = starts + counts // 2
-    low = x.min(axis=1, keepdims=True)
-    # relative to the data's own range (readings may be 1e-30 or 1e30)
-    span = 2.0 * (x.max(axis=1, keepdims=True) - low)
+
+def _span(low: Array, high: Array) -> Array:
+    """Twice each axis's range, 1 where it is 0: the keys' spacing between poses (relative to
+    the data's own range: readings may be 1e-30 or 1e30)."""
+    span = 2.0 * (high - low)
     span[span == 0] = 1.0
-    # keys = pose · span + (x − low), built in place; sorted, they keep the poses in order, so
-    # position k still belongs to the pose of sample k
-    np.subtract(x, low, out=work)
-    np.multiply(index, span, out=keys)
-    keys += work
-    keys.sort(axis=1)
-    below = keys[:, lo] - index[lo] * span + low
-    above = keys[:, hi] - index[hi] * span + low
-    at = [keys[:, k] - index[k] * span + low for k in positions]
-    return np.asarray(0.5 * (below + above)), at
+    return np.asarray(span)
+
+
+def _large(
+    starts: NDArray[np.int64], counts: NDArray[np.int64], ranks: NDArray[np.int64]
+) -> Iterator[tuple[int, int, int, list[int], NDArray[np.intp], NDArray[np.bool_]]]:
+    """For each pose of at least :data:`SELECT` samples: its index, first and last + 1
+    sample, its distinct ranks wanted (increasing), where each wanted rank is among them, and
+    which of the ranks are wanted (``-1``: not)."""
+    for i in np.flatnonzero(counts >= SELECT).tolist():
+        wanted = ranks[i] >= 0
+        distinct, back = np.unique(ranks[i][wanted], return_inverse=True)
+        s = int(starts[i])
+        yield i, s, s + int(counts[i]), distinct.tolist(), back, wanted
+
+
+def _small(
+    starts: NDArray[np.int64], counts: NDArray[np.int64]
+) -> Iterator[tuple[int, int, int, int]]:
+    """Runs of consecutive poses of fewer than :data:`SELECT` samples: first pose, last + 1,
+    first sample, last + 1."""
+    small = (counts < SELECT).view(np.int8)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], small, [0]])))
+    for p0, p1 in zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True):
+        yield p0, p1, int(starts[p0]), int(starts[p1 - 1] + counts[p1 - 1])
+
+
+def _keyed(values: Array, pose: int, low: float, span: float) -> Array:
+    """Readings of ``pose`` as sorting the keys gives them back (see :func:`_sorted`):
+    ``key = (x − low) + pose · span``, then ``key − pose · span + low``. The key is a
+    non-decreasing function of the reading, so the key of a pose's reading of rank ``r`` is
+    its key of rank ``r``: a large pose's readings are selected by partitions (linear time)
+    and only the selected ones go through this arithmetic, the same numbers, bit for bit."""
+    shift = pose * span
+    keys = (values - low) + shift
+    return (keys - shift) + low
+
+
+def _sorted(
+    x: Array,
+    first: int,
+    counts: NDArray[np.int64],
+    ranks: NDArray[np.int64],
+    low: Array,
+    span: Array,
+) -> Array:
+    """Order statistics of consecutive poses ``first, first + 1, ...`` whose samples are ``x``
+    (3, Σ counts; overwritten by their sorted keys): (r, 3, len(counts)), NaN where a rank is
+    -1 (not wanted).
+
+    One sort of ``key = pose · span + (x − low)`` (``low`` the smallest reading, ``span``
+    twice the range, per axis) orders the samples by pose, then by value, with a rounding far
+    below any sensor's resolution: each pose's ranks sit at fixed positions of the sorted
+    keys, and ``key − pose · span + low`` gives back its readings.
+    """
+    k = len(counts)
+    out = np.full((ranks.shape[1], x.shape[0], k), np.nan)
+    starts = np.cumsum(counts) - counts
+    index = np.repeat(np.arange(first, first + k), counts)
+    x -= low[:, None]
+    x += np.multiply(index, span[:, None])
+    x.sort(axis=1)
+    j, pose = np.nonzero((ranks >= 0).T)
+    at = starts[pose] + ranks[pose, j]
+    shift = np.multiply(pose + first, span[:, None])
+    out[j, :, pose] = ((x[:, at] - shift) + low[:, None]).T
+    return out
+
+
+def _select(row: Array, ranks: list[int]) -> list[float]:
+    """The values of ``row`` (1-D, reordered in place) at the sorted positions ``ranks``
+    (increasing, distinct), by partitions around one rank at a time: numpy's single-rank
+    partition is a vectorised quickselect, several ranks at once fall back to a slower one."""
+    if not ranks:
+        return []
+    m = len(row)
+    if ranks[-1] == m - 1:  # the largest: no partition needed
+        return [*_select(row, ranks[:-1]), float(row.max())]
+    if ranks[0] == 0:
+        return [float(row.min()), *_select(row, ranks[1:])]
+    j = len(ranks) // 2
+    r = ranks[j]
+    row.partition(r)
+    left = _select(row[:r], ranks[:j])
+    right = _select(row[r + 1 :], [q - r - 1 for q in ranks[j + 1 :]])
+    return [*left, float(row[r]), *right]
