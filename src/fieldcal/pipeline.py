@@ -149,12 +149,11 @@ class LogCalibration:
         return document(self.calibration, self.poses)
 
 
-def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
+def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> None:
     if not isinstance(value, str) or value not in choices:
         raise InputError(
             f"{name} must be one of {', '.join(repr(c) for c in choices)}; got {value!r}"[:200]
         )
-    return value
 
 
 def run_log(
@@ -180,6 +179,12 @@ def run_log(
     if isinstance(poses, str):
         _check_choice("poses", poses, POSE_SOURCES)
     _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
+    if isinstance(poses, PoseSet) and (mag_axes is not None or accel_sign != "specific-force"):
+        # the poses' samples were cut from the log as read: the map would apply to the log only
+        raise InputError(
+            "mag_axes and accel_sign apply while the poses are found; pass poses='still' or "
+            "'windows' with them, not poses already found"
+        )
     notes = [
         "columns used: "
         + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
