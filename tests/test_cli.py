@@ -106,6 +106,13 @@ def test_choices_come_from_the_registries():
     assert list(params["calibrate"]["method"].type.choices) == list(METHODS)
     assert params["calibrate"]["method"].default == "mle"
     assert list(params["export"]["fmt"].type.choices) == list(FORMATS)
+    # written out in the CLI (importing fieldcal.logs would slow --help), kept equal here
+    from fieldcal.geometry.frames import ACCEL_SIGNS
+    from fieldcal.logs.poses import POSE_SOURCES
+
+    assert list(params["calibrate"]["poses"].type.choices) == list(POSE_SOURCES)
+    assert params["calibrate"]["poses"].default == POSE_SOURCES[0]
+    assert list(params["calibrate"]["accel_sign"].type.choices) == list(ACCEL_SIGNS)
 
 
 def test_calibrate_summary_and_json(files):

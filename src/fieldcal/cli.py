@@ -45,6 +45,7 @@ from ._version import __version__
 from .api import calibrate as _calibrate
 from .calibration import Calibration
 from .errors import InputError
+from .geometry.frames import ACCEL_SIGNS
 from .methods import METHODS
 from .metrics import reconstruction_error
 from .output import exports
@@ -608,8 +609,8 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
 @click.option("--mag-axes", help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.")
 @click.option(
     "--accel-sign",
-    type=click.Choice(["specific-force", "gravity"]),
-    default="specific-force",
+    type=click.Choice(ACCEL_SIGNS),
+    default=ACCEL_SIGNS[0],
     show_default=True,
     help="What the accelerometer reports at rest: specific force (+1 g up) or gravity (-1 g up, "
     "some loggers); the result corrects to specific force either way.",

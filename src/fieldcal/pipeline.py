@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from .api import calibrate
 from .calibration import Calibration
 from .errors import InputError
-from .geometry.frames import parse_axes
+from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.poses import POSE_SOURCES
 from .logs.sources import read_log
@@ -38,8 +38,6 @@ __all__ = [
     "run_log",
 ]
 
-#: What the accelerometer reports (``accel_sign=``, ``--accel-sign``).
-ACCEL_SIGNS = ("specific-force", "gravity")
 #: Options of :func:`calibrate_log` that go to the reader, not to the calibration.
 READ_OPTIONS = ("decimal", "split_on_reset", "imu_topic", "mag_topic")
 

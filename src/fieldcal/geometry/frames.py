@@ -29,6 +29,7 @@ from ..errors import InputError
 from .rotations import rotation_angle_deg
 
 __all__ = [
+    "ACCEL_SIGNS",
     "GRAVITY",
     "dip_of",
     "magnetic_derivative",
@@ -46,6 +47,11 @@ Array = NDArray[np.float64]
 #: The accelerometer's reference vector in the NED world frame: the specific force at rest.
 GRAVITY: Array = np.array([0.0, 0.0, -1.0])
 GRAVITY.setflags(write=False)
+
+#: What an accelerometer may report at rest: the specific force (+1 g on the up axis, what
+#: ``GRAVITY`` above models) or gravity (−1 g up, some loggers: its readings are negated for the
+#: fit and the sign folded back into the gain and bias, ``fieldcal.pipeline.fold_axes``).
+ACCEL_SIGNS = ("specific-force", "gravity")
 
 #: ``R_i → R_i @ HALF_TURN_DOWN`` maps the world by a half turn about the down axis: it leaves
 #: ``GRAVITY`` alone and negates ``h_x`` (used when a fit lands with ``h_x < 0``).

@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from .._files import replacing, same_file
 from ..errors import InputError
 from .columns import explicit_columns, recognise_columns
-from .readers import Table, read_table, to_float
+from .readers import Table, npz_table, read_table, to_float
 from .rosbag import is_bag, read_bag
 from .text import HEAD_LINES, _split, layout, parse_numbers
 
@@ -442,21 +442,6 @@ def _read_npz(src: Path) -> tuple[dict[str, NDArray[Any]], bool]:
     return arrays, compressed
 
 
-def _npz_columns(src: Path, arrays: dict[str, NDArray[Any]]) -> Table:
-    """The columns a reader sees in an ``.npz``: 1-D arrays, ``(n, 3)`` arrays as three."""
-    columns: dict[str, NDArray[Any]] = {}
-    for key, array in arrays.items():
-        if array.ndim == 2 and array.shape[1] == 3:
-            for axis, column in zip("xyz", array.T, strict=True):
-                columns[f"{key}_{axis}"] = column
-        elif array.ndim == 1:
-            columns[key] = array
-    lengths = {len(v) for v in columns.values()}
-    if len(lengths) > 1:
-        raise InputError(f"{src}: arrays of different lengths {sorted(lengths)}; save equal rows")
-    return Table(str(src), list(columns), columns)
-
-
 def _parquet_columns(src: Path, table: Any) -> Table:
     columns: dict[str, NDArray[Any]] = {}
     for name in table.schema.names:
@@ -486,7 +471,7 @@ def _apply_table(
         fmt_in = "table"
     elif fmt_in == "npz":
         arrays, compressed = _read_npz(src)
-        table = _npz_columns(src, arrays)
+        table = npz_table(src, arrays)
     elif fmt_in == "parquet":
         pa, pq = _parquet()
         try:

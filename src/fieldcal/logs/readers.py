@@ -23,7 +23,15 @@ from numpy.typing import NDArray
 from ..errors import InputError
 from .text import LONGEST_FIELD, Table, _check_header, read_text, to_float
 
-__all__ = ["LONGEST_FIELD", "READERS", "Table", "read_table", "regular_file", "to_float"]
+__all__ = [
+    "LONGEST_FIELD",
+    "READERS",
+    "Table",
+    "npz_table",
+    "read_table",
+    "regular_file",
+    "to_float",
+]
 
 Array = NDArray[np.float64]
 
@@ -32,8 +40,6 @@ _NPZ_FIX = "save the arrays with numpy.savez, e.g. accel=(n, 3), mag=(n, 3), t=(
 
 
 def _read_npz(path: Path) -> Table:
-    columns: dict[str, NDArray[np.generic]] = {}
-    skipped: list[str] = []
     try:
         data = np.load(path, allow_pickle=False)
         if not isinstance(data, np.lib.npyio.NpzFile):  # a bare .npy array
@@ -45,9 +51,17 @@ def _read_npz(path: Path) -> Table:
     except (zipfile.BadZipFile, EOFError, ValueError, OSError, KeyError) as exc:
         reason = " ".join(str(exc).split())[:120] or type(exc).__name__
         raise InputError(f"{path}: not a readable .npz archive ({reason}); {_NPZ_FIX}") from None
+    return npz_table(path, arrays)
+
+
+def npz_table(path: str | Path, arrays: dict[str, NDArray[np.generic]]) -> Table:
+    """The table an ``.npz`` archive's arrays make: 1-D arrays are columns, an ``(n, 3)``
+    array named like a sensor becomes three columns ``<name>_x`` ...; other shapes are left
+    out (named in the error when nothing is left); every column as long as the others."""
+    columns: dict[str, NDArray[np.generic]] = {}
+    skipped: list[str] = []
     for key, array in arrays.items():
         if array.ndim == 2 and array.shape[1] == 3:
-            # an (n, 3) array named like a sensor becomes three columns "<name>_x" ...
             for axis, column in zip("xyz", array.T, strict=True):
                 columns[f"{key}_{axis}"] = column
         elif array.ndim == 1:
