@@ -39,6 +39,7 @@ RANK = {
     "api": 6,
     "pipeline": 7,
     "output": 7,
+    "capture": 7.5,  # live streams: sources, the recorder, the session, the view
     "cli": 8,
     "__init__": 9,
 }

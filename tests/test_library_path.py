@@ -164,3 +164,25 @@ def test_a_slow_turn_calibrates_in_windows(tmp_path):
     doc = json.loads(out.read_text())
     assert doc["pose_windows"]["source"] == "windows" and doc["pose_windows"]["count"] == 240
     np.testing.assert_allclose(doc["mag"]["gain"], cal.mag.gain, rtol=1e-6, atol=1e-9)
+
+
+def test_poses_found_first_take_the_axis_map_and_the_sign(session):
+    """Poses found before the call (as the live capture passes them) give the calibration the
+    whole path gives with an axis map and a gravity-reporting accelerometer: neither moves a
+    still interval, and both reach the poses' samples."""
+    from fieldcal.logs.poses import poses_from_log
+    from fieldcal.pipeline import run_log
+
+    _, columns = session
+    flipped = dict(columns)
+    for axis in "xyz":
+        flipped[f"a{axis}"] = -columns[f"a{axis}"]
+    # the magnetometer wired +y+x-z relative to the accelerometer
+    flipped["mx"], flipped["my"], flipped["mz"] = columns["my"], columns["mx"], -columns["mz"]
+    log = fieldcal.read_log(flipped)
+    options = {"mag_axes": "+y+x-z", "accel_sign": "gravity"}
+    whole = run_log(log, **options).calibration
+    given = run_log(log, poses=poses_from_log(log), **options).calibration
+    _same(whole, given)
+    plain = fieldcal.calibrate_log(columns)
+    np.testing.assert_allclose(whole.dip_deg, plain.dip_deg, atol=1e-9)

@@ -156,9 +156,10 @@ def _heading_by_solves(cal: fieldcal.Calibration) -> float:
         for n in ("accel", "mag")
     }
     base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
-    scale = max(float(np.abs(base[n][0]).max()) for n in base)
-    step = 1e-6 * scale
-    deltas = np.vstack([np.zeros(30), np.eye(30) * step])
+    # each sensor's gain, bias and noise step by 1e-6 of its own largest gain entry
+    step = np.repeat([1e-6 * float(np.abs(base[n][0]).max()) for n in base], [12, 12])
+    step = np.concatenate([step, np.repeat(step[[0, 12]], 3)])
+    deltas = np.vstack([np.zeros(30), np.diag(step)])
     out = {}
     for k, name in enumerate(("accel", "mag")):
         K, b = base[name]
@@ -168,7 +169,7 @@ def _heading_by_solves(cal: fieldcal.Calibration) -> float:
         rhs = raw[name][None] + (noise - b - d[:, 9:])[:, None, :]
         out[name] = np.linalg.solve(Kp[:, None], rhs[..., None])[..., 0]
     both = accuracy._heading(out["accel"], out["mag"])
-    J = (np.angle(np.exp(1j * (both[1:] - both[0]))) / step).T
+    J = (np.angle(np.exp(1j * (both[1:] - both[0]))) / step[:, None]).T
     C = np.zeros((30, 30))
     names = [n for s in ("accel", "mag") for n in _sensor_block(cal.covariance, s).names]
     full = [f"{s}.{n}" for s, part in (("accel", names[:12]), ("mag", names[12:])) for n in part]
@@ -185,7 +186,7 @@ def test_heading_error_by_rank_one_updates_equals_perturbed_solves(preset, seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cal = fieldcal.calibrate(s.accel, s.mag)
-    # both are finite differences with a step of 1e-6 of the gains: they agree to rounding
+    # both are finite differences with a step of 1e-6 of each sensor's gains: they agree to rounding
     # amplified by that step, far below the prediction's own precision
     assert accuracy._heading_error(cal) == pytest.approx(_heading_by_solves(cal), rel=1e-8)
 

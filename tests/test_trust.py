@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import fieldcal
+from fieldcal.trust.accuracy import predict_accuracy
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import _real_sets as real
@@ -150,3 +151,15 @@ def test_split_half_z_on_real_recordings(shared_data, folder, name):
     assert 0.3 <= half.rms_z <= 2.5
     full = _calibrate(data.accel, data.mag)
     assert full.verdict.level == "pass", full.verdict.reasons
+
+
+def test_predicted_heading_error_does_not_depend_on_either_sensors_units():
+    """The heading error's finite differences step in each sensor's own units: on a
+    calibration in raw units whose magnetometer counts are 10^4 times larger (or smaller)
+    than the accelerometer's, the prediction is the one made in unit scale (one shared step
+    gave 1e-4 off)."""
+    session = fieldcal.simulate("paper", seed=2)
+    for factor in (1e4, 1e-4):
+        counts = fieldcal.calibrate(session.accel, [m * factor for m in session.mag])
+        again = predict_accuracy(counts).heading_deg
+        assert again == pytest.approx(counts.accuracy.heading_deg, rel=1e-9)

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from .logs import Log
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
+    from .trust.plan import PlannedPose, Targets, plan_poses
 
 __all__ = [
     "METHODS",
@@ -44,11 +45,13 @@ __all__ = [
     "InputError",
     "Log",
     "ParameterCovariance",
+    "PlannedPose",
     "PoseStats",
     "RejectedPose",
     "SensorCalibration",
     "SensorStats",
     "Session",
+    "Targets",
     "Verdict",
     "__version__",
     "align",
@@ -56,6 +59,7 @@ __all__ = [
     "calibrate_log",
     "fit_ellipsoid",
     "metrics",
+    "plan_poses",
     "read_log",
     "simulate",
     "stats_from_means",
@@ -70,6 +74,10 @@ _LAZY = {
     "Log": "fieldcal.logs",
     "calibrate_log": "fieldcal.pipeline",
     "read_log": "fieldcal.pipeline",
+    # experiment design: which pose to take next
+    "PlannedPose": "fieldcal.trust.plan",
+    "Targets": "fieldcal.trust.plan",
+    "plan_poses": "fieldcal.trust.plan",
 }
 
 

@@ -19,6 +19,7 @@ only. Rich, the pipeline and the output modules load inside the commands, throug
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import importlib
 import importlib.util
@@ -35,7 +36,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, Unpack, cast
 
 import click
 import numpy as np
@@ -513,6 +514,70 @@ def _detect_options(f: _Command) -> _Command:
     return f
 
 
+def _fit_options(f: _Command) -> _Command:
+    """The calibration's options, shared by ``calibrate`` and ``capture``."""
+    options = [
+        click.option(
+            "--method",
+            type=click.Choice(list(METHODS)),
+            default=_DEFAULT_METHOD,
+            show_default=True,
+            help="Calibration method: "
+            + "; ".join(f"{m.name}, {m.summary}" for m in METHODS.values())
+            + ".",
+        ),
+        click.option(
+            "--gravity",
+            type=_MAGNITUDE,
+            help="|g| for calibrated accel units (e.g. 9.80665).",
+        ),
+        click.option(
+            "--field-strength",
+            type=_MAGNITUDE,
+            help="|h| for calibrated mag units (e.g. 48.5).",
+        ),
+        click.option(
+            "--noise",
+            help="Noise std of one raw sample: one value, or accel=0.01,mag=0.2 "
+            "(default: estimated).",
+        ),
+        click.option(
+            "--pose-noise",
+            default="auto",
+            show_default=True,
+            help="Pose-level noise std of each pose mean, raw units: auto (estimated), none "
+            "(zero, the seed paper's model), one value, or accel=0.01,mag=0.2.",
+        ),
+        click.option(
+            "--no-robust",
+            is_flag=True,
+            help="Keep every pose and every sample: no rejection of disturbed poses, no "
+            "trimming of bumps inside a pose.",
+        ),
+        click.option(
+            "--mag-axes",
+            help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.",
+        ),
+        click.option(
+            "--accel-sign",
+            type=click.Choice(ACCEL_SIGNS),
+            default=ACCEL_SIGNS[0],
+            show_default=True,
+            help="What the accelerometer reports at rest: specific force (+1 g up) or gravity "
+            "(-1 g up, some loggers); the result corrects to specific force either way.",
+        ),
+        click.option(
+            "--mag-mirrored",
+            is_flag=True,
+            help="The magnetometer's axes (after --mag-axes) are left-handed relative to the "
+            "accelerometer's; static data cannot tell this from the dip's sign.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
 def _load(log: str, cols: _LogOptions, progress: _Progress = None) -> Log:
     """The log, its columns and reading options as the ``_log_options`` give them (popped
     from ``cols``); options left at their defaults are not passed."""
@@ -526,6 +591,27 @@ def _load(log: str, cols: _LogOptions, progress: _Progress = None) -> Log:
     return loaded
 
 
+def _fit_choices(opts: _ParsedOptions) -> dict[str, Any]:
+    """The options of :func:`fieldcal.pipeline.run_log` that shape the fit (not the
+    detection), from the ``_fit_options``; absent ones take the library's defaults (the
+    method, robust fitting, estimated pose-level noise)."""
+    choices: dict[str, Any] = {
+        key: opts[key]
+        for key in ("method", "pose_noise", "accel_sign", "mag_axes")
+        if opts.get(key) is not None
+    }
+    if opts.get("no_robust"):
+        # trimming bumps inside a pose is part of the robust fit: off together
+        choices.update(robust=False, trim=False)
+    return {
+        **choices,
+        "gravity": opts.get("gravity"),
+        "field_strength": opts.get("field_strength"),
+        "noise": _parse_noise(opts.get("noise")),
+        "mag_mirrored": bool(opts.get("mag_mirrored")),
+    }
+
+
 def _run_calibration(
     log: Log, opts: _ParsedOptions, progress: _Progress = None
 ) -> tuple[Calibration, PoseSet, dict[str, Any], list[str]]:
@@ -535,14 +621,7 @@ def _run_calibration(
     take the library's defaults (the method, robust fitting, estimated pose-level noise).
     ``progress`` hears the steps (and the library's progress lines) when given.
     """
-    choices: dict[str, Any] = {
-        key: opts[key]
-        for key in ("method", "pose_noise", "poses", "accel_sign", "mag_axes", "rate")
-        if opts.get(key) is not None
-    }
-    if opts.get("no_robust"):
-        # trimming bumps inside a pose is part of the robust fit: off together
-        choices.update(robust=False, trim=False)
+    cut = {"poses": opts.get("poses"), "rate": opts.get("rate")}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run = _lazy(".pipeline").run_log(
@@ -551,12 +630,9 @@ def _run_calibration(
             min_still=opts.get("min_still"),
             still_trim=opts.get("trim"),
             still_threshold=opts.get("still_threshold"),
-            gravity=opts.get("gravity"),
-            field_strength=opts.get("field_strength"),
-            noise=_parse_noise(opts.get("noise")),
-            mag_mirrored=bool(opts.get("mag_mirrored")),
             on_progress=progress,
-            **choices,
+            **{k: v for k, v in cut.items() if v is not None},
+            **_fit_choices(opts),
         )
     # the library's warnings belong in the summary, not as tracebacks; numpy's floating-point
     # RuntimeWarnings are the library's business and never reach the terminal
@@ -578,43 +654,7 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     "--output",
     help=f"Calibration JSON to write. [default: {_DEFAULT_OUTPUT}; with --json, only when given]",
 )
-@click.option(
-    "--method",
-    type=click.Choice(list(METHODS)),
-    default=_DEFAULT_METHOD,
-    show_default=True,
-    help="Calibration method: "
-    + "; ".join(f"{m.name}, {m.summary}" for m in METHODS.values())
-    + ".",
-)
-@click.option("--gravity", type=_MAGNITUDE, help="|g| for calibrated accel units (e.g. 9.80665).")
-@click.option("--field-strength", type=_MAGNITUDE, help="|h| for calibrated mag units (e.g. 48.5).")
-@click.option(
-    "--noise",
-    help="Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
-)
-@click.option(
-    "--pose-noise",
-    default="auto",
-    show_default=True,
-    help="Pose-level noise std of each pose mean, raw units: auto (estimated), none (zero, the "
-    "seed paper's model), one value, or accel=0.01,mag=0.2.",
-)
-@click.option(
-    "--no-robust",
-    is_flag=True,
-    help="Keep every pose and every sample: no rejection of disturbed poses, no trimming of "
-    "bumps inside a pose.",
-)
-@click.option("--mag-axes", help="Magnetometer axis map onto the accelerometer's, e.g. +y+x-z.")
-@click.option(
-    "--accel-sign",
-    type=click.Choice(ACCEL_SIGNS),
-    default=ACCEL_SIGNS[0],
-    show_default=True,
-    help="What the accelerometer reports at rest: specific force (+1 g up) or gravity (-1 g up, "
-    "some loggers); the result corrects to specific force either way.",
-)
+@_fit_options
 @click.option(
     "--poses",
     type=click.Choice(["still", "windows"]),
@@ -622,12 +662,6 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     show_default=True,
     help="Without a pose column: detect still intervals, or cut the log into windows of "
     "--window seconds (a log turned slowly with no rests).",
-)
-@click.option(
-    "--mag-mirrored",
-    is_flag=True,
-    help="The magnetometer's axes (after --mag-axes) are left-handed relative to the "
-    "accelerometer's; static data cannot tell this from the dip's sign.",
 )
 @_log_options
 @_detect_options
@@ -879,6 +913,201 @@ def report(
         report_module.write_report(cal, data, output, png_dir=png_dir, on_progress=progress)
     if not quiet:
         click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))
+
+
+# ----------------------------------------------------------------------------- capture
+#: The files a capture writes into its folder.
+_CAPTURE_FILES = ("log.csv", "cal.json", "report.html")
+
+
+def _capture_folder(out_dir: str | None, force: bool, inputs: dict[str, str]) -> Path:
+    """The capture's folder, made; its files checked before any line is read."""
+    folder = Path(out_dir or time.strftime("capture-%Y%m%d-%H%M%S"))
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: exists and is not a folder; give --out a folder")
+    _claim([folder / name for name in _CAPTURE_FILES], inputs, force, folders_made=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def _targets(heading: float, tilt: float, dip: float | None = None) -> Any:
+    return _lazy(".trust.plan").Targets(heading_deg=heading, tilt_deg=tilt, dip_deg=dip)
+
+
+def _target_options(f: _Command) -> _Command:
+    options = [
+        click.option(
+            "--target-heading",
+            type=_POSITIVE,
+            default=1.0,
+            show_default=True,
+            help="Predicted heading error (1σ, degrees) to reach.",
+        ),
+        click.option(
+            "--target-tilt",
+            type=_POSITIVE,
+            default=0.5,
+            show_default=True,
+            help="Predicted tilt error (1σ, degrees) to reach.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+@cli.command()
+@click.option("--port", help="Serial port of the device (e.g. /dev/ttyACM0, COM3); pyserial.")
+@click.option("--baud", type=click.IntRange(1), default=115200, show_default=True)
+@click.option(
+    "--from",
+    "from_path",
+    help="Read the lines from FILE instead, or from standard input with - (a command's output).",
+)
+@click.option("--follow", is_flag=True, help="With --from FILE: keep reading as it grows.")
+@click.option(
+    "--columns",
+    help="Names of the fields of bare-number lines, e.g. t,ax,ay,az,mx,my,mz (else the stream "
+    "sends a header line).",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    help="Folder for log.csv, cal.json and report.html [default: capture-DATE-TIME].",
+)
+@click.option(
+    "--until",
+    type=click.Choice(["pass"]),
+    help="Stop by itself once the verdict is pass and the accuracy targets are met.",
+)
+@_target_options
+@click.option("--plain", is_flag=True, help="One line per event instead of the live view.")
+@_fit_options
+@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
+@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
+@click.option("--gyro-cols", help="Gyroscope columns x,y,z (helps still detection).")
+@click.option("--time-col", help="Time column (s; ms/us/ns recognised); default: arrival time.")
+@click.option("--decimal", type=click.Choice([".", ","]), help="Decimal mark of the numbers.")
+@_detect_options
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and a fail verdict.")
+@_force
+def capture(
+    port: str | None,
+    baud: int,
+    from_path: str | None,
+    follow: bool,
+    columns: str | None,
+    out_dir: str | None,
+    until: str | None,
+    target_heading: float,
+    target_tilt: float,
+    plain: bool,
+    quiet: bool,
+    force: bool,
+    pose_noise: str,
+    **opts: Any,
+) -> None:
+    """Calibrate live from a device: catch each still pose, say which pose to take next.
+
+    Reads CSV lines (a header, or bare numbers with --columns) from a serial port, standard
+    input or a file. Stops at the end of the input, when --until is met, on q or Ctrl-C; then
+    writes log.csv (every line received, with its arrival time), cal.json and the report into
+    --out. Exit code 3 when the final verdict is FAIL.
+    """
+    if (port is None) == (from_path is None):
+        raise click.UsageError("give the device's --port, or --from FILE (- for standard input)")
+    if follow and (from_path is None or from_path == "-"):
+        raise click.UsageError("--follow is for --from FILE (a file that is still being written)")
+    source_name = (
+        port if port is not None else ("standard input" if from_path == "-" else from_path)
+    )
+    inputs = {} if from_path in (None, "-") else {"log": str(from_path)}
+    folder = _capture_folder(out_dir, force, inputs)
+    options = cast(_ParsedOptions, {**opts, "pose_noise": _parse_pose_noise(pose_noise)})
+    session_module = _lazy(".capture.session")
+    names = _lazy(".logs.columns").explicit_columns(columns) if columns else None
+    settings = session_module.CaptureOptions(
+        columns=None if names is None else tuple(names),
+        decimal=opts.get("decimal"),
+        read={k: opts.get(k) for k in ("accel_cols", "mag_cols", "gyro_cols", "time_col")},
+        detection={
+            "rate": opts.get("rate"),
+            "window": opts.get("window"),
+            "min_still": opts.get("min_still"),
+            "trim": opts.get("trim"),
+            "threshold": opts.get("still_threshold"),
+        },
+        calibration=_fit_choices(options),
+        until=until,
+        targets=_targets(target_heading, target_tilt),
+    )
+    source = _lazy(".capture.sources").open_source(
+        port=port, baud=baud, path=from_path, follow=follow
+    )
+    view_module = _lazy(".capture.view")
+    live = not (plain or quiet) and sys.stdout.isatty()
+    console = _console()
+    with contextlib.ExitStack() as stack:
+        if live:
+            view = stack.enter_context(view_module.LiveView(console, str(source_name)))
+        else:
+            view = view_module.PlainView(open(os.devnull, "w") if quiet else None)  # noqa: SIM115
+            if quiet:
+                stack.callback(view.stream.close)
+        session = session_module.CaptureSession(settings, folder, view.event)
+        key = stack.enter_context(view_module.key_reader(live and from_path != "-"))
+        result = session_module.run_capture(source, session, refresh=view.refresh, key=key)
+    written = ", ".join(str(p) for p in result.files)
+    if result.error is not None:
+        raise InputError(f"{result.error} (kept: {written})")
+    cal = result.calibration
+    if not quiet:
+        _lazy(".output.summary").print_summary(
+            console, cal, json.loads((folder / "cal.json").read_text()), []
+        )
+        console.print(f"wrote {written}")
+    _finish(cal, summary_shown=not quiet)
+
+
+# ----------------------------------------------------------------------------- plan
+@cli.command()
+@click.argument("cal_json", type=click.Path())
+@click.option(
+    "-n",
+    "count",
+    type=click.IntRange(1, 100),
+    default=1,
+    show_default=True,
+    help="How many poses to plan.",
+)
+@_target_options
+@click.option("--target-dip", type=_POSITIVE, help="Dip standard error (degrees) to reach too.")
+@click.option("--json", "as_json", is_flag=True, help="Print the plan as JSON.")
+def plan(
+    cal_json: str,
+    count: int,
+    target_heading: float,
+    target_tilt: float,
+    target_dip: float | None,
+    as_json: bool,
+) -> None:
+    """The next poses to take for CAL_JSON: the ones that most reduce the predicted error.
+
+    Each pose is said in words (which axis points down, which way it faces) and predicted
+    errors after taking it and the ones before it.
+    """
+    cal = _read_cal(cal_json)
+    planner = _lazy(".trust.plan")
+    poses = planner.plan_poses(
+        cal, count, targets=_targets(target_heading, target_tilt, target_dip)
+    )
+    if as_json:
+        click.echo(json.dumps([p.to_dict() for p in poses], indent=2, allow_nan=False))
+        return
+    console = _console()
+    for i, pose in enumerate(poses, 1):
+        console.print(f"{i}. {pose.words}")
+        console.print(f"   then: {planner.predicted_line(pose)}")
 
 
 # ----------------------------------------------------------------------------- demo

@@ -177,12 +177,6 @@ def run_log(
     if isinstance(poses, str):
         _check_choice("poses", poses, POSE_SOURCES)
     _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
-    if isinstance(poses, PoseSet) and (mag_axes is not None or accel_sign != "specific-force"):
-        # the poses' samples were cut from the log as read: the map would apply to the log only
-        raise InputError(
-            "mag_axes and accel_sign apply while the poses are found; pass poses='still' or "
-            "'windows' with them, not poses already found"
-        )
     notes = [
         "columns used: "
         + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
@@ -195,7 +189,6 @@ def run_log(
         if log.mag is None:
             raise InputError("--mag-axes given but the log has no magnetometer columns")
         P = parse_axes(mag_axes)
-        log = dataclasses.replace(log, mag=log.mag @ P.T)
         notes.append(
             f"magnetometer axes mapped {mag_axes} for the fit and folded back into its gain: "
             "apply the result to the raw columns as logged"
@@ -204,7 +197,6 @@ def run_log(
     if gravity_sign:
         if log.accel is None:
             raise InputError("--accel-sign gravity given but the log has no accelerometer columns")
-        log = dataclasses.replace(log, accel=-log.accel)
         notes.append(
             "accelerometer read as reporting gravity (−1 g on the up axis): fitted on the "
             "negated readings and folded back into its gain, so the correction gives the "
@@ -215,6 +207,8 @@ def run_log(
     else:
         if on_progress is not None:
             on_progress(f"finding the poses in {log.path}")
+        # neither the map nor the sign moves a still interval: the poses are found in the
+        # readings as logged and the samples of each are mapped below
         found = poses_from_log(
             log,
             poses=poses,
@@ -224,6 +218,10 @@ def run_log(
             trim=still_trim,
             threshold=still_threshold,
         )
+    if P is not None and found.mag is not None:
+        found = dataclasses.replace(found, mag=[m @ P.T for m in found.mag])
+    if gravity_sign and found.accel is not None:
+        found = dataclasses.replace(found, accel=[-a for a in found.accel])
     notes.append(_how_found(log, found))
     _check_poses(found, method, log, rate)
     if on_progress is not None:

@@ -14,7 +14,7 @@ from typing import Unpack
 import numpy as np
 from numpy.typing import NDArray
 
-from ..geometry.rotations import exp_so3, log_so3
+from .device import geodesic
 from .session import Preset, Session, simulate
 
 __all__ = ["ContinuousLog", "simulate_continuous"]
@@ -87,12 +87,11 @@ def simulate_continuous(
         if i + 1 == len(R):
             break
         m = max(2, round(rng.uniform(*move_seconds) * rate))
+        Rt, omega = geodesic(R[i], R[i + 1], m, rate)
+        # these logs' gyroscope reads the turn rate with the opposite sign to the body-frame
+        # angular velocity (Device's); kept, so the logs stay as they were
+        omega = -omega
         u = (np.arange(m) + 0.5) / m
-        s = 0.5 - 0.5 * np.cos(np.pi * u)  # raised cosine: starts and stops at rest
-        phi = log_so3(R[i + 1] @ R[i].T)  # body-frame turn from pose i to pose i + 1
-        Rt = exp_so3(s[:, None] * phi) @ R[i]
-        duration = m / rate
-        omega = (0.5 * np.pi * np.sin(np.pi * u) / duration)[:, None] * phi
         lin = shake * np.sin(np.pi * u)[:, None] * rng.standard_normal((m, 3))
         body_g = np.einsum("nij,j->ni", Rt, g) + lin * np.linalg.norm(g)
         body_h = np.einsum("nij,j->ni", Rt, h)

@@ -109,12 +109,16 @@ def _heading_error(cal: Calibration) -> float | None:
     }
     # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6)
     base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
-    scale = max(float(np.abs(base["accel"][0]).max()), float(np.abs(base["mag"][0]).max()))
-    step = 1e-6 * scale
+    # one step per sensor, in its own raw units (the two gains may differ by 10^4): each
+    # sensor's parameter and noise rows are perturbed by its step and divided by it below
+    steps = np.ones(31)
     # corrected readings (31, H, 3) per sensor: unperturbed, then one row per parameter
     corrected = {}
     for k, name in enumerate(("accel", "mag")):
         K, b = base[name]
+        step = 1e-6 * float(np.abs(K).max())
+        steps[1 + 12 * k : 13 + 12 * k] = step
+        steps[25 + 3 * k : 28 + 3 * k] = step
         # one solve gives the corrected readings and K⁻¹ (the right-hand sides' last columns)
         solved = np.linalg.solve(K, np.column_stack([(raw[name] - b).T, np.eye(3)]))
         u, Kinv = solved[:, :_HEADINGS].T, solved[:, _HEADINGS:]
@@ -131,7 +135,7 @@ def _heading_error(cal: Calibration) -> float | None:
         corrected[name] = rows
     both = _heading(corrected["accel"], corrected["mag"])
     wrapped = np.remainder(both[1:] - both[0] + np.pi, 2.0 * np.pi) - np.pi
-    J = (wrapped / step).T  # (H, 30)
+    J = (wrapped / steps[1:, None]).T  # (H, 30)
     C = np.zeros((30, 30))
     C[:12, :12] = _param_block(cal.covariance, "accel")
     C[12:24, 12:24] = _param_block(cal.covariance, "mag")
