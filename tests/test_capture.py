@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import json
 import re
+import signal
 import subprocess
 import threading
 
@@ -209,6 +210,13 @@ def _finish(process, timeout=60):
     return process.returncode, process.stderr.read()
 
 
+def _announced(lines):
+    """The pose numbers announced, in order: each pose once, counted 1, 2, 3, ..."""
+    numbers = [int(m[1]) for x in lines if (m := re.match(r"pose (\d+) captured", x))]
+    assert numbers == list(range(1, len(numbers) + 1)), numbers
+    return numbers
+
+
 def _paper_rotations(seed):
     return fieldcal.simulate("paper", seed=seed).drawn["rotations"]
 
@@ -224,8 +232,7 @@ def test_a_device_on_a_serial_port(tmp_path):
         device.start()
         code, stderr = _finish(process)
     assert code in (0, 3), stderr
-    captured = [x for x in lines if re.match(r"pose \d+ captured", x)]
-    assert len(captured) == len(device.pose_rows) == 15, "\n".join(lines)
+    assert len(_announced(lines)) == len(device.pose_rows) == 15, "\n".join(lines)
     done = [x for x in lines if x.startswith("done: ")]
     assert len(done) == 1 and done[0].startswith("done: disconnected"), done
     cal = fieldcal.Calibration.from_json((out / "cal.json").read_text())
@@ -314,6 +321,7 @@ def test_a_user_who_follows_the_suggestions(tmp_path):
         code, stderr = _finish(process, timeout=120)
     assert code == 0, stderr + "\n".join(lines)
     assert "done: the verdict is pass and the targets are met" in lines
+    _announced(lines)
     cal = fieldcal.Calibration.from_json((out / "cal.json").read_text())
     assert cal.verdict.level == "pass"
     assert cal.accuracy.heading_deg <= 1.0 and cal.accuracy.tilt_deg <= 0.5
@@ -350,3 +358,94 @@ def test_coverage_map_puts_down_directions_where_they_belong():
     assert rows[-1].startswith("   +Z up") and "✗" in rows[-1]
     middle = rows[len(rows) // 2]
     assert middle.index("+", 9) == 9 + MAP_COLUMNS // 4  # azimuth 90° (+Y), a quarter across
+
+
+def test_bare_numbers_with_columns(recorded, tmp_path):
+    """Bare-number lines named by --columns give the calibration of the same log with its
+    header."""
+    path, _ = recorded
+    _, *rows = path.read_text().splitlines()
+    out = tmp_path / "cap"
+    result, _ = _plain_run(
+        [
+            "capture",
+            "--from",
+            "-",
+            "--plain",
+            "--out",
+            str(out),
+            "--columns",
+            "t,ax,ay,az,gx,gy,gz,mx,my,mz",
+        ],
+        input="\n".join(rows) + "\n",
+    )
+    assert result.exit_code == 0, result.output
+    bare = fieldcal.Calibration.from_json((out / "cal.json").read_text())
+    direct = fieldcal.calibrate_log(path)
+    np.testing.assert_allclose(bare.mag.gain, direct.mag.gain, rtol=1e-12)
+
+
+def test_following_a_growing_file_until_pass(recorded, tmp_path):
+    """--follow reads a file as a logger appends to it, and --until pass ends the capture by
+    itself before the file is complete, with a calibration meeting the targets."""
+    path, _ = recorded
+    lines = path.read_text().splitlines(keepends=True)
+    growing = tmp_path / "growing.csv"
+    growing.write_text(lines[0])
+    stop = threading.Event()
+
+    def logger():
+        with growing.open("a") as f:
+            for k in range(1, len(lines), 200):
+                if stop.wait(0.02):
+                    return
+                f.write("".join(lines[k : k + 200]))
+                f.flush()
+
+    writer = threading.Thread(target=logger, daemon=True)
+    out = tmp_path / "cap"
+    process, seen, said = _capture(
+        [
+            "--from",
+            str(growing),
+            "--follow",
+            "--until",
+            "pass",
+            "--out",
+            str(out),
+            "--target-heading",
+            "2",
+            "--target-tilt",
+            "1",
+        ]
+    )
+    _wait_for(seen, said, lambda s: any(x.startswith("reading ") for x in s))
+    writer.start()
+    code, stderr = _finish(process)
+    stop.set()
+    assert code == 0, stderr
+    assert "done: the verdict is pass and the targets are met" in seen
+    cal = fieldcal.Calibration.from_json((out / "cal.json").read_text())
+    assert cal.accuracy.heading_deg <= 2 and cal.accuracy.tilt_deg <= 1
+    assert json.loads((out / "cal.json").read_text())["capture"]["rows"] < len(lines) - 1
+
+
+def test_ctrl_c_writes_what_was_received(tmp_path):
+    """Ctrl-C in the middle of a paced stream: the capture stops at once, says so, and keeps
+    every line received with the calibration of the poses so far."""
+    out = tmp_path / "cap"
+    with PtyDevice(_paper_rotations(14), seed=14, speed=20.0) as device:
+        process, lines, said = _capture(["--port", device.port, "--out", str(out)])
+        _wait_for(lines, said, lambda seen: any(x.startswith("reading ") for x in seen))
+        device.start()
+        _wait_for(lines, said, lambda seen: sum("captured" in x for x in seen) >= 9, 60)
+        process.send_signal(signal.SIGINT)
+        code, stderr = _finish(process)
+        written = device.rows
+    assert code in (0, 3), stderr
+    assert "done: stopped by the user (Ctrl-C)" in lines
+    assert len(_announced(lines)) >= 9
+    recorded = [x for x in (out / "log.csv").read_text().splitlines() if not x.startswith("#")]
+    assert 0 < len(recorded) - 1 <= written  # every row received (the header aside)
+    cal = fieldcal.Calibration.from_json((out / "cal.json").read_text())
+    assert len(cal.poses) >= 9, "\n".join(lines)

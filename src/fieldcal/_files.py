@@ -28,6 +28,7 @@ from .errors import InputError
 
 __all__ = [
     "check_outputs",
+    "fsync_folder",
     "record",
     "replacing",
     "same_file",
@@ -155,7 +156,7 @@ def _fsync(path: Path) -> None:
         os.close(fd)
 
 
-def _fsync_folder(folder: Path) -> None:
+def fsync_folder(folder: Path) -> None:
     """Make the rename itself durable (POSIX; other systems have no folder handles)."""
     if os.name != "posix":  # pragma: no cover
         return
@@ -207,7 +208,7 @@ def replacing(path: str | os.PathLike[str]) -> Iterator[Path]:
         with suppress(OSError):
             temp.unlink()
         raise
-    _fsync_folder(folder)
+    fsync_folder(folder)
     done = _DONE.get()
     if done is not None:
         done.append(Path(path))

@@ -958,7 +958,13 @@ def _target_options(f: _Command) -> _Command:
 
 @cli.command()
 @click.option("--port", help="Serial port of the device (e.g. /dev/ttyACM0, COM3); pyserial.")
-@click.option("--baud", type=click.IntRange(1), default=115200, show_default=True)
+@click.option(
+    "--baud",
+    type=click.IntRange(1),
+    default=115200,
+    show_default=True,
+    help="Bits per second of the serial port.",
+)
 @click.option(
     "--from",
     "from_path",
@@ -1025,7 +1031,7 @@ def capture(
     folder = _capture_folder(out_dir, force, inputs)
     options = cast(_ParsedOptions, {**opts, "pose_noise": _parse_pose_noise(pose_noise)})
     session_module = _lazy(".capture.session")
-    names = _lazy(".logs.columns").explicit_columns(columns) if columns else None
+    names = [name.strip() for name in columns.split(",")] if columns else None
     settings = session_module.CaptureOptions(
         columns=None if names is None else tuple(names),
         decimal=opts.get("decimal"),

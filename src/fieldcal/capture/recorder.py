@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import os
 import threading
-from contextlib import suppress
 from pathlib import Path
 from types import TracebackType
 from typing import TextIO
 
+from .._files import fsync_folder
 from ..errors import InputError
 from ..logs.stream import HEADER, LineParser, arrival_text
 
@@ -228,7 +228,7 @@ class Recorder:
             os.fsync(self._file.fileno())
             self._file.close()
         os.replace(self.partial, self.final)
-        _fsync_folder(self.folder)
+        fsync_folder(self.folder)
         self._closed = True
         return self.final
 
@@ -256,15 +256,3 @@ def _header_text(parser: LineParser) -> str:
     if '"' in text and not any(delimiter in n or '"' in n or not n for n in names):
         text = delimiter.join(names)
     return text
-
-
-def _fsync_folder(folder: Path) -> None:
-    """Make the rename durable (POSIX; other systems have no folder handles)."""
-    if os.name != "posix":  # pragma: no cover
-        return
-    with suppress(OSError):
-        fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)

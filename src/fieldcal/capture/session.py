@@ -195,6 +195,7 @@ class CaptureSession:
         self._taken: list[Orientation] = []
         self._log: Log | None = None
         self._log_rows = -1
+        self._rate: float | None = None
 
     # ------------------------------------------------------------------ input
     def receive(self, line: Line) -> None:
@@ -224,15 +225,16 @@ class CaptureSession:
         return read
 
     def latest(self) -> dict[str, Array]:
-        """The last reading of each sensor (raw), for the view's "now"."""
-        log = self.log()
+        """The last reading of each sensor (raw), for the view's "now": from the parser's
+        table (cheap views), with the columns the last log recognised."""
         out: dict[str, Array] = {}
-        if log is None:
+        if self._log is None or self.parser.n_rows == 0:
             return out
-        for name in ("accel", "mag", "gyro"):
-            values = getattr(log, name)
-            if values is not None and len(values):
-                out[name] = np.asarray(values[-1], dtype=float)
+        table = self.parser.table()
+        for role in ("accel", "mag", "gyro"):
+            names = self._log.used.get(role)
+            if names is not None:
+                out[role] = np.array([float(table.columns[c][-1]) for c in names])
         return out
 
     # ------------------------------------------------------------------ work
@@ -241,6 +243,11 @@ class CaptureSession:
         whenever any has: the stream is quiet, the user waits)."""
         if self.next_pose is None and self.parser.header is not None:
             self._suggest_first()  # the first pose, as soon as the sensors are known
+        rows = self.parser.n_rows
+        # whether to look is decided before the log is made: making it copies every column
+        due = rows > self.detector.rows if force else self.detector.due(rows, self._rate)
+        if rows == 0 or not due:
+            return
         try:
             log = self.log()
         except InputError as exc:
@@ -248,9 +255,7 @@ class CaptureSession:
             return
         if log is None:
             return
-        due = log.n > self.detector.rows if force else self.detector.due(log.n, log.rate)
-        if not due:
-            return
+        self._rate = log.rate
         self.state = self.detector.update(log)
         if self.state.poses is None:
             self.message = self.state.message

@@ -111,6 +111,7 @@ class LiveDetector:
         self.rows = 0
         self._finished = -math.inf
         self._took = 0.0
+        self._held: tuple[int, int] | None = None  # rows of the held pose once captured
         self.state = LiveState(None, 0, 0, None, 0, "waiting for samples")
 
     def due(self, rows: int, rate: float | None) -> bool:
@@ -156,6 +157,12 @@ class LiveDetector:
             last = detection.segments[-1]
             held = n - last.start
             still = held / poses.rate if poses.rate else float(held)
-            if last.samples >= detection.min_samples + detection.window:
+            # once captured, a held pose stays so: when the device starts to move, the
+            # window's edge shortens the interval for a moment before the pose settles
+            again = (
+                self._held is not None and self._held[0] < last.stop and last.start < self._held[1]
+            )
+            if again or last.samples >= detection.min_samples + detection.window:
                 captured = poses.n
+                self._held = (last.start, last.stop)
         return LiveState(poses, settled, captured, still, n, "", said)
