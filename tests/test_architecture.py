@@ -35,8 +35,10 @@ RANK = {
     "logs": 3,
     "simulation": 3,
     "methods": 4,
+    "gyro": 4,  # the gyroscope stage: integration and estimation from the fitted poses
     "trust": 5,
     "api": 6,
+    "noise": 6,  # noise characterisation of a log (Allan deviation, imu.yaml)
     "pipeline": 7,
     "output": 7,
     "capture": 7.5,  # live streams: sources, the recorder, the session, the view

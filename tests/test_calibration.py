@@ -13,6 +13,7 @@ from fieldcal.calibration import Calibration, Diagnostics, ParameterCovariance, 
 from fieldcal.geometry.frames import misalignment_angle_deg
 from fieldcal.geometry.gauge import canonical_gauge
 from fieldcal.geometry.rotations import exp_so3, random_rotations
+from fieldcal.output import exports
 
 seeds = st.integers(0, 2**32 - 1)
 
@@ -347,3 +348,44 @@ def test_correct_refuses_what_is_not_real_readings():
     for raw in ([[1 + 1j, 0, 0]], [["1", "2", "3"]], [[True, False, True]]):
         with pytest.raises(ValueError, match="raw readings must be real numbers"):
             cal.correct_accel(raw)
+
+
+def _with_gyro(cal: Calibration, seed: int = 3) -> Calibration:
+    """``cal`` with a gyroscope: a gain near 100 counts per rad/s, its covariance block added
+    beside the other parameters'."""
+    rng = np.random.default_rng(seed)
+    gain = 100.0 * (np.eye(3) + 0.02 * rng.standard_normal((3, 3)))
+    gyro = SensorCalibration(gain=gain, bias=rng.normal(size=3), noise_cov=0.04 * np.eye(3))
+    names = [f"gyro.gain[{j},{k}]" for j in range(3) for k in range(3)]
+    names += [f"gyro.bias[{j}]" for j in range(3)]
+    A = rng.standard_normal((12, 12)) * 1e-3
+    base = cal.covariance
+    n = len(base.names)
+    matrix = np.zeros((n + 12, n + 12))
+    matrix[:n, :n] = base.matrix
+    matrix[n:, n:] = A @ A.T
+    covariance = ParameterCovariance((*base.names, *names), matrix)
+    segments = ({"start": 10, "stop": 90, "seconds": 0.8, "angle_deg": 91.0, "residual_deg": 0.2},)
+    return dataclasses.replace(cal, gyro=gyro, covariance=covariance, gyro_segments=segments)
+
+
+def test_the_gyroscope_travels_with_the_calibration():
+    """A gyroscope's gain, bias, standard errors and segments survive the JSON; its correction
+    inverts its model; the exports carry it; a broken one is refused in one line."""
+    cal = _with_gyro(_full_calibration())
+    again = Calibration.from_json(cal.to_json())
+    assert again == cal
+    np.testing.assert_array_equal(again.gyro.gain_std, cal.gyro.gain_std)
+    assert again.gyro.bias_std is not None and np.all(again.gyro.bias_std > 0)
+    assert again.gyro_segments == cal.gyro_segments
+    omega = np.random.default_rng(1).normal(size=(5, 3))
+    np.testing.assert_allclose(again.correct_gyro(cal.gyro.distort(omega)), omega, atol=1e-12)
+    header = exports.export(cal, "c-header")
+    assert "FIELDCAL_GYRO_MATRIX" in header and "gyroscope rad/s" in header
+    assert "A_gyro" in exports.export(cal, "matlab")
+    assert cal.units["gyro_calibrated"] == "rad/s"
+    broken = dataclasses.replace(cal, gyro=dataclasses.replace(cal.gyro, gain=np.zeros((3, 3))))
+    with pytest.raises(ValueError, match=r"gyro\.gain is singular"):
+        Calibration.from_json(broken.to_json())
+    with pytest.raises(ValueError, match="no gyro"):
+        _full_calibration().correct_gyro(omega)

@@ -211,7 +211,7 @@ def _finish(process, timeout=60):
 
 
 def _announced(lines):
-    """The pose numbers announced, in order: each pose once, counted 1, 2, 3, ..."""
+    """The pose numbers announced, in order: counted 1, 2, 3, ... (each said once)."""
     numbers = [int(m[1]) for x in lines if (m := re.match(r"pose (\d+) captured", x))]
     assert numbers == list(range(1, len(numbers) + 1)), numbers
     return numbers

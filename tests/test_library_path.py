@@ -186,3 +186,31 @@ def test_poses_found_first_take_the_axis_map_and_the_sign(session):
     _same(whole, given)
     plain = fieldcal.calibrate_log(columns)
     np.testing.assert_allclose(whole.dip_deg, plain.dip_deg, atol=1e-9)
+
+
+def test_the_gyroscope_from_the_same_log(tmp_path):
+    """A continuous log with a gyroscope: ``calibrate_log`` fits it from the motion between
+    the poses, the truth (in fieldcal's body frame) lies within 4 standard errors, it travels
+    through the JSON and the CLI, and ``gyro=`` skips it or makes any reason an error."""
+    sim = simulate_continuous("paper", seed=21)
+    truth = sim.gyro_truth
+    path = tmp_path / "gyro.csv"
+    sim.write_csv(str(path))
+    cal = fieldcal.calibrate_log(path)
+    assert cal.gyro is not None and cal.options["gyro"]["method"] == "rotations"
+    z_gain = (cal.gyro.gain - truth.gain) / cal.gyro.gain_std
+    z_bias = (cal.gyro.bias - truth.bias) / cal.gyro.bias_std
+    assert np.abs(z_gain).max() < 4 and np.abs(z_bias).max() < 4, (z_gain, z_bias)
+    assert len(cal.gyro_segments) == len(sim.segments) - 1
+    again = fieldcal.Calibration.from_json(cal.to_json())
+    rates = np.column_stack([sim.columns[f"g{a}"] for a in "xyz"])
+    np.testing.assert_allclose(again.correct_gyro(rates), cal.correct_gyro(rates), atol=1e-12)
+    assert fieldcal.calibrate_log(path, gyro=False).gyro is None
+    no_gyro = {k: v for k, v in sim.columns.items() if not k.startswith("g")}
+    with pytest.raises(InputError, match="no gyroscope columns"):
+        fieldcal.calibrate_log(no_gyro, gyro=True)
+    out = tmp_path / "cal.json"
+    result = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "gyroscope: raw = gain · ω (rad/s) + bias" in result.output
+    assert json.loads(out.read_text())["gyro"]["gain"] == [list(r) for r in cal.gyro.gain]

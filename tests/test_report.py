@@ -91,6 +91,8 @@ def test_user_text_is_escaped(made):
 def test_figures_are_inlined_and_written(made):
     names = {p.stem for p in (made["folder"] / "png").iterdir()}
     expected = {"timeline", "residuals", "histograms", "accel_sphere", "mag_sphere", "coverage"}
+    assert made["cal"].gyro is not None  # the simulated log has a gyroscope: its figure too
+    expected.add("gyro")
     assert names == expected
     assert made["page"].count("data:image/png;base64,") == len(expected)
 

@@ -41,6 +41,7 @@ from .geometry.frames import (
 from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
 
 __all__ = [
+    "GYRO",
     "SENSORS",
     "Accuracy",
     "Calibration",
@@ -59,6 +60,8 @@ _VECTOR = {"shape": (3,)}
 
 #: The sensors of the joint model, in the order every table and parameter vector uses.
 SENSORS: tuple[Sensor, ...] = ("accel", "mag")
+#: The gyroscope: calibrated after the two field sensors, from the motion between the poses.
+GYRO: Literal["gyro"] = "gyro"
 
 
 @dataclass(frozen=True, eq=False)
@@ -340,6 +343,15 @@ class Calibration(ArrayDataclass):
         Poses dropped by the robust fit.
     accuracy : Accuracy or None
         Predicted errors in the user's terms.
+    gyro : SensorCalibration or None
+        The gyroscope, fitted after the other sensors from the motion between the poses
+        (:mod:`fieldcal.gyro`): ``raw_ω = gain @ ω + bias``, ω in rad/s in the common body
+        frame; ``noise_cov`` of one raw sample; ``pose_noise_std`` unused (0). Its gain and
+        bias are in :attr:`covariance` as ``gyro.gain[j,k]``, ``gyro.bias[j]`` (no
+        correlation with the other sensors' parameters is kept). ``None`` without one.
+    gyro_segments : tuple of dict
+        One entry per motion segment the gyroscope was fitted on (``start``, ``stop`` rows,
+        ``seconds``, ``angle_deg`` turned, ``residual_deg`` after calibration).
     units : dict
         Units of raw and calibrated readings, for humans and exports.
     version, created : str
@@ -363,6 +375,8 @@ class Calibration(ArrayDataclass):
     verdict: Verdict | None = None
     rejected: tuple[RejectedPose, ...] = ()
     accuracy: Accuracy | None = None
+    gyro: SensorCalibration | None = None
+    gyro_segments: tuple[dict[str, Any], ...] = field(default=(), repr=False)
     units: dict[str, str] = field(default_factory=dict, repr=False)
     version: str = field(
         default="", compare=False, repr=False, metadata={"key": "fieldcal_version"}
@@ -383,6 +397,7 @@ class Calibration(ArrayDataclass):
             if value is not None:
                 object.__setattr__(self, name, frozen_array(value))
         object.__setattr__(self, "poses", tuple(dict(p) for p in self.poses))
+        object.__setattr__(self, "gyro_segments", tuple(dict(p) for p in self.gyro_segments))
         object.__setattr__(self, "rejected", tuple(self.rejected))
         object.__setattr__(self, "iterations", int(self.iterations))
         object.__setattr__(self, "converged", bool(self.converged))
@@ -393,6 +408,10 @@ class Calibration(ArrayDataclass):
                 block = None if blocks is None else blocks[name]
                 if block is not sensor.covariance and block != sensor.covariance:
                     object.__setattr__(self, name, dataclasses.replace(sensor, covariance=block))
+        if self.gyro is not None:
+            block = _sensor_block(self.covariance, GYRO)
+            if block is not self.gyro.covariance and block != self.gyro.covariance:
+                object.__setattr__(self, GYRO, dataclasses.replace(self.gyro, covariance=block))
         if not self.version:
             object.__setattr__(self, "version", __version__)
         if not self.created:
@@ -400,6 +419,9 @@ class Calibration(ArrayDataclass):
             object.__setattr__(self, "created", now)
         if not self.units:
             object.__setattr__(self, "units", _default_units(self))
+        elif self.gyro is not None and "gyro_calibrated" not in self.units:
+            units = {"gyro_raw": "as given", "gyro_calibrated": "rad/s"}
+            object.__setattr__(self, "units", {**self.units, **units})
 
     def __repr__(self) -> str:
         sensors = "+".join(s for s in SENSORS if getattr(self, s) is not None) or "none"
@@ -489,9 +511,10 @@ class Calibration(ArrayDataclass):
 
     # ----------------------------------------------------------------- model
     def sensor(self, name: str) -> SensorCalibration:
-        """The calibration of sensor ``name``; a one-line error when it was not calibrated."""
-        if name not in SENSORS:
-            raise ValueError(f"sensor must be one of {', '.join(SENSORS)}, got {name!r}")
+        """The calibration of sensor ``name`` (``"accel"``, ``"mag"`` or ``"gyro"``); a
+        one-line error when it was not calibrated."""
+        if name not in (*SENSORS, GYRO):
+            raise ValueError(f"sensor must be one of {', '.join((*SENSORS, GYRO))}, got {name!r}")
         value: SensorCalibration | None = getattr(self, name)
         if value is None:
             raise ValueError(f"this calibration has no {name}; calibrate one first")
@@ -521,6 +544,11 @@ class Calibration(ArrayDataclass):
     def correct_mag(self, raw: ArrayLike) -> Array:
         """Raw magnetometer readings (..., 3) -> body-frame magnetic field (inverse model)."""
         return self.sensor("mag").correct(raw)
+
+    def correct_gyro(self, raw: ArrayLike) -> Array:
+        """Raw gyroscope readings (..., 3) -> body-frame angular rate in rad/s,
+        ``gain⁻¹ (raw − bias)``, in the same body frame as the other sensors."""
+        return self.sensor(GYRO).correct(raw)
 
     def with_field_magnitudes(
         self, gravity: float | None = None, field_strength: float | None = None
@@ -724,6 +752,16 @@ class Calibration(ArrayDataclass):
             ref = self.gravity if name == "accel" else self.magnetic
             if ref is None or not np.all(np.isfinite(ref)) or not np.linalg.norm(ref) > 0:
                 raise ValueError(f"invalid calibration: the {name} reference field is not finite")
+        if self.gyro is not None:
+            gyro = self.gyro
+            for part in ("gain", "bias", "noise_cov"):
+                if not np.all(np.isfinite(getattr(gyro, part))):
+                    raise ValueError(f"invalid calibration: gyro.{part} has NaN or inf entries")
+            s = np.linalg.svd(gyro.gain, compute_uv=False)
+            if not s[-1] > 1e-12 * s[0]:
+                raise ValueError(
+                    "invalid calibration: gyro.gain is singular, so rates cannot be corrected"
+                )
         if not np.all(np.isfinite(self.rotations)):
             raise ValueError("invalid calibration: rotations has NaN or inf entries")
         if self.covariance is not None and not np.all(np.isfinite(self.covariance.matrix)):
@@ -748,11 +786,12 @@ CONVENTIONS = {
     "rotations": "R_i maps world-frame vectors to the body frame",
     "dip": "degrees, positive when the field points below the horizon",
     "pose_noise_std": "raw units per axis, the pose mean's error beyond noise_cov / samples",
+    "gyro": "mean raw rate = gain @ omega + bias, omega in rad/s in the body frame",
 }
 
 
 #: Each sensor's gain and bias parameter names, in the order of its covariance block.
-_SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s in SENSORS}
+_SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s in (*SENSORS, GYRO)}
 
 
 def _sensor_block(
@@ -777,5 +816,8 @@ def _default_units(cal: Calibration) -> dict[str, str]:
     units = {"accel_raw": "as given", "mag_raw": "as given"}
     units["accel_calibrated"] = "|g| = 1" if g is None or g == 1.0 else f"|g| = {g:g}"
     units["mag_calibrated"] = "|h| = 1" if h is None or h == 1.0 else f"|h| = {h:g}"
+    if cal.gyro is not None:
+        units["gyro_raw"] = "as given"
+        units["gyro_calibrated"] = "rad/s"
     units["angles"] = "degrees"
     return units

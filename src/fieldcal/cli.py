@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import importlib
 import importlib.util
 import inspect
@@ -44,7 +45,7 @@ import numpy as np
 from . import _files
 from ._version import __version__
 from .api import calibrate as _calibrate
-from .calibration import Calibration
+from .calibration import Calibration, SensorCalibration
 from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS
 from .methods import METHODS
@@ -126,6 +127,7 @@ class _CalibrateOptions(_LogOptions, total=False):
     still_threshold: float | None
     poses: str
     accel_sign: str
+    gyro: bool | None
 
 
 class _ParsedOptions(_CalibrateOptions, total=False):
@@ -567,6 +569,12 @@ def _fit_options(f: _Command) -> _Command:
             "(-1 g up, some loggers); the result corrects to specific force either way.",
         ),
         click.option(
+            "--gyro/--no-gyro",
+            default=None,
+            help="Calibrate the gyroscope from the motion between the poses: by default when "
+            "the log has one and it can be (a note says why not); --gyro makes that an error.",
+        ),
+        click.option(
             "--mag-mirrored",
             is_flag=True,
             help="The magnetometer's axes (after --mag-axes) are left-handed relative to the "
@@ -597,7 +605,7 @@ def _fit_choices(opts: _ParsedOptions) -> dict[str, Any]:
     method, robust fitting, estimated pose-level noise)."""
     choices: dict[str, Any] = {
         key: opts[key]
-        for key in ("method", "pose_noise", "accel_sign", "mag_axes")
+        for key in ("method", "pose_noise", "accel_sign", "mag_axes", "gyro")
         if opts.get(key) is not None
     }
     if opts.get("no_robust"):
@@ -846,8 +854,16 @@ def simulate(
         with _files.replacing(output) as temp:
             log.write_csv(str(temp))
         session: Session = log.session
+        true_cal = session.truth
+        gyro = log.gyro_truth
+        if gyro is not None:  # in fieldcal's body frame, as an estimate from the log is
+            sensor = SensorCalibration(
+                gain=gyro.gain, bias=gyro.bias, noise_cov=gyro.noise_std**2 * np.eye(3)
+            )
+            true_cal = dataclasses.replace(true_cal, gyro=sensor)
     else:
         session = simulate_session(preset, seed=seed, **extra)
+        true_cal = session.truth
         counts = session.counts
         data = np.column_stack(
             [
@@ -866,7 +882,7 @@ def simulate(
                 fmt=["%d"] + ["%.9g"] * 6,
             )
     if truth:
-        _files.write_text(truth, session.truth.to_json() + "\n")
+        _files.write_text(truth, true_cal.to_json() + "\n")
     click.echo(f"wrote {output}" + (f" and {truth}" if truth else ""))
 
 

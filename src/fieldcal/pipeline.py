@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,13 +18,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .api import calibrate
-from .calibration import Calibration
+from .calibration import Calibration, ParameterCovariance, SensorCalibration
 from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
+from .geometry.rotations import hat
+from .gyro.estimate import GyroFit, fit_gyro
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.poses import POSE_SOURCES
 from .logs.sources import read_log
 from .methods import get as get_method
+from .methods.mle.uncertainty import pose_rotation_covariance
 from .stats.poses import check_spread, stats_from_means
 
 __all__ = [
@@ -166,6 +169,7 @@ def run_log(
     still_trim: float | None = None,
     still_threshold: float | None = None,
     method: str = "mle",
+    gyro: bool | None = None,
     on_progress: Callable[[str], None] | None = None,
     **options: Any,
 ) -> LogCalibration:
@@ -176,6 +180,11 @@ def run_log(
     """
     if isinstance(poses, str):
         _check_choice("poses", poses, POSE_SOURCES)
+    if gyro is True and log.gyro is None:  # before the long work
+        raise InputError(
+            "the gyroscope cannot be calibrated: the log has no gyroscope columns; name them "
+            "with --gyro-cols"
+        )
     _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
     notes = [
         "columns used: "
@@ -227,6 +236,12 @@ def run_log(
     if on_progress is not None:
         on_progress(f"calibrating {found.n} poses ({method})")
     cal = calibrate(found.accel, found.mag, method=method, on_progress=on_progress, **options)
+    if gyro is not False:
+        # on the fit as made (before an axis map or sign is folded into it): the poses'
+        # orientation covariance comes from its noise model and gauge
+        if on_progress is not None and log.gyro is not None:
+            on_progress("calibrating the gyroscope from the motion between the poses")
+        cal = _gyro_stage(log, found, cal, required=gyro is True, rate=rate, notes=notes)
     if P is not None and mag_axes is not None:
         cal = fold_axes(cal, P, mag_axes)
     if gravity_sign:
@@ -242,6 +257,121 @@ def run_log(
     provenance = {"log": log.path, "columns": log.used}
     cal = dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
     return LogCalibration(cal, found, tuple(notes))
+
+
+def _log_rows(log: Log, entry: Mapping[str, Any]) -> tuple[int, int]:
+    """A pose's first and stop positions among the log's kept rows (``start``/``stop`` are
+    data-row numbers)."""
+    first = int(np.searchsorted(log.index, int(entry["start"])))
+    stop = int(np.searchsorted(log.index, int(entry["stop"]) - 1)) + 1
+    return first, stop
+
+
+def _gyro_stage(
+    log: Log,
+    found: PoseSet,
+    cal: Calibration,
+    *,
+    required: bool,
+    rate: float | None,
+    notes: list[str],
+) -> Calibration:
+    """The gyroscope, fitted to the motion between the fitted poses (:func:`fieldcal.gyro.
+    fit_gyro`): with both field sensors, to the rotations the joint fit found; with the
+    accelerometer alone, to the gravity directions. ``required`` (``gyro=True``) turns every
+    reason not to into an error; otherwise the reason is a note and the result has no gyro."""
+
+    def skip(reason: str) -> Calibration:
+        if required:
+            raise InputError(f"the gyroscope cannot be calibrated: {reason}")
+        if log.gyro is not None:
+            notes.append(f"gyroscope not calibrated: {reason}")
+        return cal
+
+    if log.gyro is None:
+        return skip("the log has no gyroscope columns; name them with --gyro-cols")
+    if cal.accel is None:
+        return skip("it needs the accelerometer (the gravity directions) to be calibrated")
+    if log.time is not None and rate is None:
+        time = log.time
+    elif rate is not None or log.rate is not None:
+        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
+    else:
+        return skip("the log has no time column; give one or the sample rate (--rate)")
+    dropped = {r.index for r in cal.rejected}
+    kept = [i for i in range(found.n) if i not in dropped]
+    if any("start" not in found.entries[i] or "stop" not in found.entries[i] for i in kept):
+        return skip("the poses are not intervals of the log in time order (a pose column)")
+    rows = [_log_rows(log, found.entries[i]) for i in kept]
+    joint = cal.mag is not None and cal.magnetic is not None
+    try:
+        if joint:
+            fit = fit_gyro(
+                time,
+                log.gyro,
+                rows,
+                cal.rotations,
+                rotation_cov=pose_rotation_covariance(cal),
+            )
+        else:
+            accel = np.array([found.means("accel")[i] for i in kept])
+            gravity = cal.correct_accel(accel)
+            X = np.zeros((3 * len(kept), 3 * len(kept)))
+            for k, g in enumerate(gravity):  # the direction's error from each pose's tilt
+                X[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = -hat(g)
+            C = pose_rotation_covariance(cal)
+            fit = fit_gyro(time, log.gyro, rows, gravity_body=gravity, gravity_cov=X @ C @ X.T)
+    except InputError as exc:
+        return skip(str(exc))
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
+        return skip(
+            "its fit failed in floating point; check that the time column is in seconds "
+            "(or give --time-col / --rate)"
+        )
+    return with_gyro(cal, fit, log, time)
+
+
+def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64]) -> Calibration:
+    """``cal`` with the gyroscope of ``fit``: its parameters, their covariance beside the
+    others' (no correlation kept), the motion segments and how it was fitted."""
+    sensor = SensorCalibration(gain=fit.gain, bias=fit.bias, noise_cov=fit.noise_cov)
+    covariance = cal.covariance
+    if covariance is not None:
+        n, m = len(covariance.names), len(fit.covariance.names)
+        matrix = np.zeros((n + m, n + m))
+        matrix[:n, :n] = covariance.matrix
+        matrix[n:, n:] = fit.covariance.matrix
+        covariance = ParameterCovariance((*covariance.names, *fit.covariance.names), matrix)
+    segments = []
+    for (first, last), residual in zip(fit.segments, fit.segment_residual_deg, strict=True):
+        segments.append(
+            {
+                "start": int(log.index[first]),
+                "stop": int(log.index[last]) + 1,
+                "seconds": float(time[last] - time[first]),
+                "residual_deg": float(residual),
+            }
+        )
+    how = {
+        "method": fit.method,
+        "drift": fit.drift,
+        "drift_p_value": fit.drift_p_value,
+        "bias_wander": fit.bias_wander,
+        "pose_time": [float(t) for t in fit.pose_time],
+        "pose_bias": [[float(v) for v in row] for row in fit.pose_bias],
+        "observable": list(fit.observable),
+        "statistic": fit.statistic,
+        "dof": fit.dof,
+        "p_value": fit.p_value,
+        "widening": fit.widening,
+    }
+    return dataclasses.replace(
+        cal,
+        gyro=sensor,
+        covariance=covariance,
+        gyro_segments=tuple(segments),
+        options={**cal.options, "gyro": how},
+    )
 
 
 def _how_found(log: Log, poses: PoseSet) -> str:
@@ -292,7 +422,12 @@ def calibrate_log(
         The magnetometer's axes onto the accelerometer's, e.g. ``"+y+x-z"``; folded back so
         the result applies to the raw columns.
     rate : float, optional
-        Samples per second; overrides the time column's rate for the durations below.
+        Samples per second; overrides the time column's rate for the durations below (and
+        the gyroscope's integration).
+    gyro : bool, optional
+        The gyroscope (``cal.gyro``, :mod:`fieldcal.gyro`), fitted to the motion between the
+        poses when the log has one: by default when it can be (a note says why not otherwise),
+        ``True`` to make any reason an error, ``False`` to skip it.
     window, min_still, still_trim, still_threshold : float, optional
         Still detection: moving-variance window, shortest still interval, the part cut at each
         end (seconds, samples without a rate) and the accelerometer threshold (raw units).

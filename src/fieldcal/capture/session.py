@@ -192,6 +192,7 @@ class CaptureSession:
         self.done = False
         self._fit_key: tuple[int, ...] = ()
         self._suggested_after = -1
+        self.captured_count = 0
         self._taken: list[Orientation] = []
         self._log: Log | None = None
         self._log_rows = -1
@@ -319,7 +320,12 @@ class CaptureSession:
             if known is None:
                 if self.next_pose is not None:
                     self._taken.append(self.next_pose)  # what the user was asked to do
-                text = f"pose {i + 1} captured" + (f": {mark.words}" if mark.words else "")
+                # numbered by capture, not by the detection's index: the final detection on
+                # every sample may find an early pose shorter or gone, and a number once said
+                # is not said again
+                self.captured_count += 1
+                text = f"pose {self.captured_count} captured"
+                text += f": {mark.words}" if mark.words else ""
                 if mark.seconds is not None:
                     text += f" ({mark.seconds:.1f} s still)"
                 self.emit(Event("pose", text, {"index": i, "start": rows[0], "stop": rows[1]}))

@@ -371,6 +371,26 @@ def _coverage_figure(
     return fig
 
 
+def _gyro_figure(Figure: type[MplFigure], cal: Calibration) -> MplFigure:
+    """Per-segment rotation residuals and the still poses' mean rates against time."""
+    fig = Figure(figsize=(10, 3.4), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    residual = [seg.get("residual_deg", np.nan) for seg in cal.gyro_segments]
+    left.bar(np.arange(1, len(residual) + 1), residual, color=_FITTED)
+    left.set_xlabel("motion segment")
+    left.set_ylabel("rotation residual (°)")
+    info = cal.options.get("gyro", {})
+    times, rates = info.get("pose_time"), info.get("pose_bias")
+    if times is not None and rates is not None and len(times):
+        rates = np.asarray(rates, dtype=float)
+        for j, axis in enumerate("xyz"):
+            right.plot(times, rates[:, j], "o-", ms=3, label=f"ω{axis} raw")
+        right.legend(fontsize=8)
+    right.set_xlabel("time (s)")
+    right.set_ylabel("mean raw rate in each still pose")
+    return fig
+
+
 def _histogram_figure(
     Figure: type[MplFigure],
     norms: Mapping[str, tuple[Array, Array]],
@@ -609,6 +629,10 @@ _CAPTIONS = {
     "mag_sphere": "Raw (top) and calibrated (bottom) magnetometer readings.",
     "coverage": "Field direction of each pose in the sensor frame (red: rejected). Poses "
     "spread over the sphere determine the calibration best.",
+    "gyro": "Left: each motion segment's rotation residual after calibration (degrees): the "
+    "angle between the rotation the calibrated gyroscope integrates over the motion and the one "
+    "the fit finds between the two poses. Right: the gyroscope's mean raw rate in each still "
+    "pose against time (its bias and how it drifts).",
 }
 
 _TITLES = {
@@ -618,6 +642,7 @@ _TITLES = {
     "accel_sphere": "Accelerometer readings",
     "mag_sphere": "Magnetometer readings",
     "coverage": "Pose coverage",
+    "gyro": "Gyroscope",
 }
 #: The figures a report can hold, in page order: ``--png`` writes ``<name>.png`` for each drawn.
 FIGURES = tuple(_TITLES)
@@ -644,7 +669,8 @@ def write_report(
         The HTML file to write (one self-contained page).
     png_dir : str or Path, optional
         Also write each figure there as ``<name>.png`` (``timeline``, ``residuals``,
-        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``: :data:`FIGURES`).
+        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``, ``gyro``:
+        :data:`FIGURES`).
     on_progress : callable, optional
         Called with one line of text as each figure is drawn (a large log takes seconds).
 
@@ -706,6 +732,8 @@ def write_report(
             means = np.array([corrected[s][p.rows].mean(axis=0) for p in poses])
             directions[_LABELS[s]] = means / np.linalg.norm(means, axis=1, keepdims=True)
         figures["coverage"] = _coverage_figure(Figure, directions, poses)
+    if cal.gyro is not None and cal.gyro_segments:
+        figures["gyro"] = _gyro_figure(Figure, cal)
 
     if png_dir is not None:
         Path(png_dir).mkdir(parents=True, exist_ok=True)

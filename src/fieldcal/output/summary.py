@@ -63,8 +63,8 @@ def print_verdict(console: Console, cal: Calibration) -> None:
         _say(console, f"  {reason}")
 
 
-def _sensor_table(name: str, sensor: SensorCalibration) -> Table:
-    table = Table(title=f"{name}: raw = gain · v + bias", title_justify="left", box=_BOX)
+def _sensor_table(name: str, sensor: SensorCalibration, v: str = "v") -> Table:
+    table = Table(title=f"{name}: raw = gain · {v} + bias", title_justify="left", box=_BOX)
     for column in ("gain x", "gain y", "gain z", "bias"):
         table.add_column(column, justify="right")
     gain_std, bias_std = sensor.gain_std, sensor.bias_std
@@ -87,6 +87,36 @@ def _print_sensor(console: Console, name: str, sensor: SensorCalibration) -> Non
         console,
         f"  pose-level noise std per axis (raw units): {_pm(q, se, '.3g')} — {how}",
     )
+
+
+def _print_gyro(console: Console, cal: Calibration) -> None:
+    """The gyroscope's table (ω in rad/s), its noise, the bias drift and the motion segments'
+    residual angles."""
+    gyro = cal.gyro
+    assert gyro is not None
+    console.print(_sensor_table("gyroscope", gyro, "ω (rad/s)"))
+    noise = ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(gyro.noise_cov)))
+    _say(console, f"  noise std per axis (one raw sample): {noise} — from the still poses")
+    info = cal.options.get("gyro", {})
+    if info.get("drift") is not None:
+        p_value = info.get("drift_p_value")
+        verdict = (
+            ""
+            if p_value is None
+            else (f" (p = {p_value:.2g}: {'drifts' if p_value < 0.01 else 'no significant drift'})")
+        )
+        _say(
+            console,
+            f"  bias drift across the log: {info['drift']:.3g} raw units/s "
+            f"({3600 * info['drift']:.3g} per hour){verdict}",
+        )
+    residuals = [s["residual_deg"] for s in cal.gyro_segments if "residual_deg" in s]
+    if residuals:
+        _say(
+            console,
+            f"  {len(residuals)} motion segments ({info.get('method', '?')}): rotation residual "
+            f"median {np.median(residuals):.3g}°, largest {np.max(residuals):.3g}°",
+        )
 
 
 def _accuracy_line(cal: Calibration) -> str | None:
@@ -235,6 +265,8 @@ def print_summary(
         sensor = getattr(cal, name)
         if sensor is not None:
             _print_sensor(console, label, sensor)
+    if cal.gyro is not None:
+        _print_gyro(console, cal)
     if cal.dip_deg is not None:
         _say(
             console,

@@ -3,8 +3,9 @@
 :class:`Device` draws its truth with :func:`fieldcal.simulate` (gains, biases, fields and noise
 covariances of the preset) and then produces samples on demand, as a board held by a user
 would: a time column at ``rate``, the raw accelerometer ``K_a R g + b_a + noise``, the raw
-magnetometer ``K_m R h + b_m + noise`` and a gyroscope (rad/s, white noise of
-``gyro_noise``). Between two rotations the board turns along the geodesic of SO(3) with a
+magnetometer ``K_m R h + b_m + noise`` and a gyroscope ``K_g ω + b_g(t) + noise`` with a drawn
+truth (:class:`GyroTruth`, :func:`draw_gyro`: a realistic MEMS part by default, an ideal one on
+request). Between two rotations the board turns along the geodesic of SO(3) with a
 raised-cosine speed (at rest at both ends), shaken a little (a linear acceleration of up to
 ``shake`` |g|), and the gyroscope reads the body-frame turn rate.
 
@@ -21,16 +22,131 @@ from typing import Unpack
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._frozen import ArrayDataclass, frozen_array
 from ..calibration import Calibration
+from ..geometry.frames import orthogonal_polar_factor
 from ..geometry.rotations import exp_so3, log_so3
 from .session import Drawn, Preset, Session, simulate
 
-__all__ = ["COLUMNS", "Device", "Samples", "geodesic"]
+__all__ = ["COLUMNS", "GYRO_STREAM", "Device", "GyroTruth", "Samples", "draw_gyro", "geodesic"]
 
 Array = NDArray[np.float64]
 
 #: Column names of :meth:`Samples.columns`, in order.
 COLUMNS = ("t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz")
+
+#: The gyroscope's truth is drawn from ``default_rng([seed, GYRO_STREAM])``, a stream of its
+#: own: the other sensors' samples of a seed do not change with it, and a seed gives the same
+#: gyroscope in :func:`~fieldcal.simulation.continuous.simulate_continuous` and :class:`Device`.
+GYRO_STREAM = 4
+
+#: The realistic MEMS gyroscope :func:`draw_gyro` draws by default (each uniform in ±value):
+#: scale error, cross-axis coupling, misalignment to the body frame (radians, per axis of a
+#: small rotation), bias (rad/s); and the white noise of one sample at 100 Hz (rad/s).
+MEMS = {"scale": 0.03, "cross_axis": 0.01, "misalignment": np.radians(1.0), "bias": 0.02}
+MEMS_NOISE_100HZ = 0.005
+
+
+@dataclass(frozen=True, eq=False)
+class GyroTruth(ArrayDataclass):
+    """A simulated gyroscope: ``raw = gain @ ω + bias + drift · t + noise``.
+
+    ``ω`` is the body-frame angular rate in rad/s (``dR/dt = −[ω]× R``) in the frame named by
+    ``frame``: ``"drawn"`` the frame the session's drawn gains act in (the sensors' own axes:
+    the samples are made there), ``"gauge"`` fieldcal's body frame (the accelerometer's gain
+    symmetric, :func:`fieldcal.geometry.gauge.canonical_gauge`), where an estimate from a
+    calibration's rotations lives. The two differ by the rotation ``U`` of the accelerometer's
+    polar decomposition: ``ω_gauge = U ω_drawn``, ``gain_gauge = gain_drawn Uᵀ``.
+
+    Attributes
+    ----------
+    gain : (3, 3) array
+        Raw units per rad/s (scale, cross-axis coupling, misalignment).
+    bias : (3,) array
+        Raw units, at ``t = 0``.
+    noise_std : float
+        Standard deviation of one sample's white noise, raw units, each axis.
+    drift : (3,) array
+        Change of the bias per second, raw units/s (zeros: a constant bias).
+    frame : str
+        ``"drawn"`` or ``"gauge"`` (above).
+    """
+
+    gain: Array
+    bias: Array
+    noise_std: float
+    drift: Array
+    frame: str = "drawn"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gain", frozen_array(self.gain))
+        object.__setattr__(self, "bias", frozen_array(self.bias))
+        object.__setattr__(self, "drift", frozen_array(self.drift))
+        object.__setattr__(self, "noise_std", float(self.noise_std))
+
+    def bias_at(self, t: ArrayLike) -> Array:
+        """The bias (..., 3) at times ``t`` (s)."""
+        out: Array = self.bias + np.asarray(t, dtype=float)[..., None] * self.drift
+        return out
+
+    def read(self, t: ArrayLike, omega: ArrayLike, normals: ArrayLike) -> Array:
+        """Raw readings (n, 3) of body-frame rates ``omega`` (n, 3) at times ``t``, with the
+        noise made from standard normals (n, 3)."""
+        w = np.asarray(omega, dtype=float)
+        out: Array = w @ self.gain.T + self.bias_at(t) + self.noise_std * np.asarray(normals)
+        return out
+
+    def in_gauge(self, drawn: Drawn) -> GyroTruth:
+        """This truth in fieldcal's body frame for a session drawn as ``drawn``."""
+        if self.frame == "gauge":
+            return self
+        U = orthogonal_polar_factor(np.asarray(drawn["accel_gain"], dtype=float))
+        return GyroTruth(self.gain @ U.T, self.bias, self.noise_std, self.drift, "gauge")
+
+
+def draw_gyro(
+    rng: np.random.Generator,
+    *,
+    rate: float = 100.0,
+    ideal: bool = False,
+    noise: float | None = None,
+    drift: float = 0.0,
+) -> GyroTruth:
+    """Draw a gyroscope's truth (in the drawn frame, :class:`GyroTruth`).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The gyroscope's own stream (``default_rng([seed, GYRO_STREAM])``).
+    rate : float
+        Samples per second: the default noise keeps the density of :data:`MEMS_NOISE_100HZ`
+        at 100 Hz (``0.005 · sqrt(rate / 100)`` rad/s per sample).
+    ideal : bool
+        Identity gain and zero bias (and no drift); the noise as given or the default.
+    noise : float, optional
+        Standard deviation of one sample's white noise (rad/s) instead of the default.
+    drift : float
+        Half-range of the bias drift drawn per axis, rad/s per second (0: constant bias).
+
+    Returns
+    -------
+    GyroTruth
+        Default (realistic MEMS): ``gain = (I + S + C) exp([m]×)`` with the scale errors ``S``
+        (diagonal, ±3 %), cross-axis couplings ``C`` (off-diagonal, ±1 %) and a misalignment
+        ``m`` (±1° per axis); bias ±0.02 rad/s per axis.
+    """
+    # every draw is made (ideal or not) so a seed gives the same noise stream either way
+    scale = rng.uniform(-MEMS["scale"], MEMS["scale"], 3)
+    cross = rng.uniform(-MEMS["cross_axis"], MEMS["cross_axis"], (3, 3))
+    angles = rng.uniform(-MEMS["misalignment"], MEMS["misalignment"], 3)
+    bias = rng.uniform(-MEMS["bias"], MEMS["bias"], 3)
+    slope = rng.uniform(-1.0, 1.0, 3) * float(drift)
+    std = MEMS_NOISE_100HZ * np.sqrt(float(rate) / 100.0) if noise is None else float(noise)
+    if ideal:
+        return GyroTruth(np.eye(3), np.zeros(3), std, np.zeros(3))
+    np.fill_diagonal(cross, 0.0)
+    gain = (np.eye(3) + np.diag(scale) + cross) @ exp_so3(angles)
+    return GyroTruth(gain, bias, std, slope)
 
 
 def geodesic(start: Array, stop: Array, m: int, rate: float) -> tuple[Array, Array]:
@@ -103,8 +219,13 @@ class Device:
         Samples per second.
     shake : float
         Largest linear acceleration while moving, in units of |g|.
-    gyro_noise : float
-        Standard deviation of the gyroscope's white noise, rad/s.
+    gyro_noise : float, optional
+        Standard deviation of the gyroscope's white noise, rad/s (default: the MEMS part's,
+        0.005 rad/s at 100 Hz, :func:`draw_gyro`).
+    ideal_gyro : bool
+        An ideal gyroscope (identity gain, zero bias) instead of the drawn MEMS part.
+    gyro_drift : float
+        Half-range of the gyroscope's bias drift per axis, rad/s per second (default none).
     **options
         Other keywords of :func:`fieldcal.simulate` (``noise_alpha``, ``dip_deg`` ...).
 
@@ -114,6 +235,8 @@ class Device:
         The draw: ``session.truth`` is the truth in fieldcal's gauge (its ``rotations`` are
         the draw's poses, not the ones this device is put in); ``session.drawn`` the
         parameters as drawn, which the samples use.
+    gyro_drawn : GyroTruth
+        The gyroscope as drawn (the samples' frame); :attr:`gyro_truth` in fieldcal's gauge.
     """
 
     def __init__(
@@ -123,7 +246,9 @@ class Device:
         seed: int | None = None,
         rate: float = 100.0,
         shake: float = 0.05,
-        gyro_noise: float = 0.01,
+        gyro_noise: float | None = None,
+        ideal_gyro: bool = False,
+        gyro_drift: float = 0.0,
         **options: Unpack[Preset],
     ) -> None:
         if not rate > 0:
@@ -131,7 +256,14 @@ class Device:
         self.session: Session = simulate(preset, seed=seed, **options)
         self.rate = float(rate)
         self.shake = float(shake)
-        self.gyro_noise = float(gyro_noise)
+        self.gyro_drawn = draw_gyro(
+            np.random.default_rng(None if seed is None else [seed, GYRO_STREAM]),
+            rate=self.rate,
+            ideal=ideal_gyro,
+            noise=gyro_noise,
+            drift=gyro_drift,
+        )
+        self.gyro_noise = self.gyro_drawn.noise_std
         # a stream of its own: the truth is exactly simulate(preset, seed)'s
         self._rng = np.random.default_rng(None if seed is None else [seed, 2])
         self._count = 0
@@ -145,6 +277,11 @@ class Device:
     def truth(self) -> Calibration:
         """The true calibration in fieldcal's gauge (compare estimates with it)."""
         return self.session.truth
+
+    @property
+    def gyro_truth(self) -> GyroTruth:
+        """The gyroscope's truth in fieldcal's gauge (compare a gyroscope fit with it)."""
+        return self.gyro_drawn.in_gauge(self.drawn)
 
     @property
     def drawn(self) -> Drawn:
@@ -191,7 +328,7 @@ class Device:
         t = self._rows(m)
         rotations = np.broadcast_to(R, (m, 3, 3)).copy()
         accel, mag = self._readings(rotations, np.zeros((m, 3)))
-        gyro = self._rng.standard_normal((m, 3)) * self.gyro_noise
+        gyro = self.gyro_drawn.read(t, np.zeros((m, 3)), self._rng.standard_normal((m, 3)))
         return Samples(t, accel, gyro, mag, rotations)
 
     def move(self, start: ArrayLike, stop: ArrayLike, seconds: float) -> Samples:
@@ -214,7 +351,7 @@ class Device:
         linear = self.shake * np.sin(np.pi * u)[:, None] * self._rng.standard_normal((m, 3))
         t = self._rows(m)
         accel, mag = self._readings(rotations, linear)
-        gyro = omega + self._rng.standard_normal((m, 3)) * self.gyro_noise
+        gyro = self.gyro_drawn.read(t, omega, self._rng.standard_normal((m, 3)))
         return Samples(t, accel, gyro, mag, rotations)
 
 

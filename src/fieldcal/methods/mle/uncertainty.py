@@ -10,15 +10,17 @@ residual (outlier tests).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from ...calibration import ParameterCovariance
-from .lm import Normal, reduce
-from .model import SYM_MAP, Problem
+from ...calibration import Calibration, ParameterCovariance
+from ...stats.poses import PoseStats, SensorStats
+from .lm import Normal, normal_equations, reduce
+from .model import SYM_MAP, Problem, State, build_problem, residuals
 
 Array = NDArray[np.float64]
 
@@ -113,3 +115,115 @@ def wishart_std(cov: Array, dof: int) -> Array:
     """Standard error of Eq. 7's entries: ``Var Σ̂_ij = (Σ_ij² + Σ_ii Σ_jj)/ν``."""
     d = np.diag(cov)
     return np.sqrt((cov**2 + np.outer(d, d)) / max(dof, 1))
+
+
+def pose_rotation_covariance(
+    cal: Calibration, counts: Mapping[str, ArrayLike] | None = None
+) -> Array:
+    """Cramér-Rao covariance (3N, 3N) of the poses' rotations.
+
+    Each pose's rotation is perturbed in the body frame, ``R_i ← exp([δ_i]×) R_i`` (as the
+    optimiser updates it); the result is the covariance of the stacked ``δ = (δ_0, …, δ_{N−1})``
+    (radians), the pose block of the inverse Fisher matrix: ``U_i⁻¹ δ_ij + Y_i C Y_jᵀ`` with
+    ``Y_i = U_i⁻¹ W_i`` and ``C`` the globals' covariance, so the poses' shared errors (through
+    the gains and the dip) are included. Its 3x3 diagonal blocks are each pose's own. With one
+    sensor the rotation about its field is not determined: the covariance then holds the two
+    tilt angles only (zero along ``R_i f``), which is what the field's direction in the body
+    frame, ``R_i f``, needs: its covariance is ``X C Xᵀ`` with ``X = blockdiag(−[R_i f]×)``.
+
+    Parameters
+    ----------
+    cal : Calibration
+        A calibration with its noise model: ``noise_cov`` and ``pose_noise_std`` of each sensor
+        (those of :func:`fieldcal.calibrate`), in fieldcal's gauge (the frame sensor's gain
+        symmetric).
+    counts : mapping, optional
+        Samples per pose of each sensor (``{"accel": (N,), "mag": (N,)}``); by default the
+        ``accel_samples`` / ``mag_samples`` entries of ``cal.poses`` for the poses in the fit.
+
+    Returns
+    -------
+    (3N, 3N) array
+        Covariance of the poses' small-angle rotation errors, body frame, radians².
+
+    Raises
+    ------
+    ValueError
+        When the counts are missing or wrong, or neither sensor's gain is symmetric (no
+        fieldcal gauge to evaluate it in).
+    """
+    n = cal.n_poses
+    sensors = {
+        s: sensor
+        for s, sensor in (("accel", cal.accel), ("mag", cal.mag))
+        if sensor is not None and (cal.gravity if s == "accel" else cal.magnetic) is not None
+    }
+    if not sensors:
+        raise ValueError("the calibration has no sensor with a reference field")
+    if counts is None:
+        rows = [r for r in cal.poses if all(f"{s}_samples" in r for s in sensors)]
+        if len(rows) != n:
+            raise ValueError(
+                f"cal.poses lists samples for {len(rows)} poses but the fit has {n}; "
+                "pass counts={'accel': ..., 'mag': ...}"
+            )
+        counts = {s: [int(r[f"{s}_samples"]) for r in rows] for s in sensors}
+    magnitudes = {"accel": cal.gravity_norm or 1.0, "mag": cal.field_strength or 1.0}
+    stats_of: dict[str, SensorStats | None] = {"accel": None, "mag": None}
+    for s, sensor in sensors.items():
+        c = np.asarray(counts[s], dtype=np.int64)
+        if c.shape != (n,) or np.any(c < 1):
+            raise ValueError(f"counts[{s!r}] must hold {n} sample counts of at least 1")
+        stats_of[s] = SensorStats(
+            means=np.zeros((n, 3)),
+            counts=c,
+            cov=np.array(sensor.noise_cov, dtype=float),
+            dof=int(c.sum() - n),
+            pose_var=float(sensor.pose_noise_std) ** 2,
+        )
+
+    def symmetric(K: Array) -> bool:
+        return bool(np.allclose(K, K.T, rtol=0, atol=1e-9 * np.abs(K).max()))
+
+    frame = next((s for s in sensors if symmetric(sensors[s].gain)), None)
+    if frame is None:
+        raise ValueError(
+            "no sensor's gain is symmetric, so the calibration is not in fieldcal's gauge; "
+            "pass the calibration as fitted (before an axis map was folded into the frame sensor)"
+        )
+    problem = build_problem(PoseStats(stats_of["accel"], stats_of["mag"]), frame)
+    dip = 0.0
+    if cal.magnetic is not None and problem.joint:
+        dip = float(np.arctan2(cal.magnetic[2], cal.magnetic[0]))
+    rotations = np.array(cal.rotations)
+    if not problem.joint and "mag" in sensors:
+        # one magnetometer: the model's field is north, (1, 0, 0); the calibration's may not be
+        h = np.asarray(cal.magnetic, dtype=float) / magnitudes["mag"]
+        rotations = rotations @ _world_turn(h, np.array([1.0, 0.0, 0.0])).T
+    state = State(
+        {s: np.array(sensors[s].gain) * magnitudes[s] for s in sensors},
+        {s: np.array(sensors[s].bias) for s in sensors},
+        dip,
+        rotations,
+    )
+    # the Fisher matrix JᵀJ does not depend on the means (zeros stand in for them)
+    ne = normal_equations(problem, state, residuals(problem, state))
+    C, Uinv, Y, _ = global_covariance(ne)
+    full = np.einsum("iag,gh,jbh->iajb", Y, C, Y)
+    for i in range(n):
+        full[i, :, i, :] += Uinv[i]
+    if ne.basis is not None:  # one sensor: the two tilt angles, back in the body frame
+        full = np.einsum("ika,iajb,jlb->ikjl", ne.basis, full, ne.basis)
+    out: Array = full.reshape(3 * n, 3 * n)
+    return 0.5 * (out + out.T)
+
+
+def _world_turn(a: Array, b: Array) -> Array:
+    """The smallest rotation taking unit vector ``a`` to unit vector ``b``."""
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if np.linalg.norm(v) < 1e-15:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    V = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    out: Array = np.eye(3) + V + V @ V / (1.0 + c)
+    return out

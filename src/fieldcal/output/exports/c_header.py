@@ -14,7 +14,8 @@ __all__ = ["CONTENT", "FORMULA", "c_float", "write"]
 FORMULA = "out[i] = sum_j M[i][j] * (raw[j] - B[j]), M = inv(gain), B = bias"
 CONTENT = (
     "`static const float FIELDCAL_ACCEL_BIAS[3]`, `FIELDCAL_ACCEL_MATRIX[3][3]` (row major), "
-    "the same for `MAG`, and `fieldcal_apply(M, B, raw, out)`"
+    "the same for `MAG` (and `GYRO`, in rad/s, when calibrated), and "
+    "`fieldcal_apply(M, B, raw, out)`"
 )
 
 _FLOAT32 = np.finfo(np.float32)
@@ -73,7 +74,7 @@ def write(cal: Calibration) -> str:
         f" *   {FORMULA}",
         " * with M = FIELDCAL_<SENSOR>_MATRIX (row major) and B = FIELDCAL_<SENSOR>_BIAS,",
         " * as fieldcal_apply(M, B, raw, out) below does.",
-        " * Both sensors' outputs are in one common body frame.",
+        " * Every sensor's output is in one common body frame (the gyroscope's in rad/s).",
         " */",
         "#ifndef FIELDCAL_CALIBRATION_H",
         "#define FIELDCAL_CALIBRATION_H",

@@ -7,18 +7,19 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ...calibration import SENSORS, Calibration, SensorCalibration
+from ...calibration import GYRO, SENSORS, Calibration, SensorCalibration
 
 __all__ = ["NAMES", "comment_header", "corrections", "exact", "provenance"]
 
 Array = NDArray[np.float64]
 
 #: Sensor names as the exported text spells them.
-NAMES = {"accel": "accelerometer", "mag": "magnetometer"}
+NAMES = {"accel": "accelerometer", "mag": "magnetometer", "gyro": "gyroscope"}
 
 
 def corrections(cal: Calibration) -> list[tuple[str, Array, Array]]:
-    """``(sensor, inv(gain), bias)`` for each calibrated sensor, accelerometer first.
+    """``(sensor, inv(gain), bias)`` for each calibrated sensor: accelerometer, magnetometer,
+    then the gyroscope (its correction gives rad/s).
 
     Parameters
     ----------
@@ -36,7 +37,7 @@ def corrections(cal: Calibration) -> list[tuple[str, Array, Array]]:
         no target can represent it, so every export refuses it in one line.
     """
     out: list[tuple[str, Array, Array]] = []
-    for name in SENSORS:
+    for name in (*SENSORS, GYRO):
         sensor: SensorCalibration | None = getattr(cal, name)
         if sensor is None:
             continue
@@ -84,6 +85,7 @@ def provenance(cal: Calibration) -> list[str]:
     lines.append(
         f"calibrated units: accelerometer {units.get('accel_calibrated', '?')}, "
         f"magnetometer {units.get('mag_calibrated', '?')}"
+        + (f", gyroscope {units.get('gyro_calibrated', 'rad/s')}" if cal.gyro is not None else "")
     )
     if cal.options.get("mag_axes"):
         lines.append(

@@ -12,7 +12,10 @@ __all__ = ["CONTENT", "FORMULA", "write"]
 
 #: magcal's correction: D is N-by-3 (one raw reading per row), b 1-by-3, A 3-by-3.
 FORMULA = "C = (D - b) * A, A = inv(gain).'"
-CONTENT = "`A_accel`, `b_accel`, `A_mag`, `b_mag` (D N×3, rows are readings; `b` 1×3)"
+CONTENT = (
+    "`A_accel`, `b_accel`, `A_mag`, `b_mag` (and `A_gyro`, `b_gyro`, rad/s, when calibrated; "
+    "D N×3, rows are readings; `b` 1×3)"
+)
 
 
 def _matrix(M: NDArray[np.float64]) -> str:

@@ -1,0 +1,25 @@
+"""The gyroscope stage: its gain, misalignment and bias from the motion between still poses.
+
+- :mod:`.integrate` — a body-frame rate integrated exactly into a rotation over the timestamps
+  as given (quaternions, a log-depth scan; bursts of equal timestamps spread);
+- :mod:`.estimate` — :func:`fit_gyro`: maximum likelihood against the poses' rotations of a
+  joint calibration (``method="rotations"``) or, with an accelerometer alone, against the
+  gravity directions (``"gravity"``); the result is a :class:`GyroFit`.
+
+``docs/methods/gyro.md`` describes the method.
+"""
+
+from __future__ import annotations
+
+from .estimate import BIAS_NAMES, GAIN_NAMES, GyroFit, fit_gyro
+from .integrate import effective_time, integrate, rotation_vector
+
+__all__ = [
+    "BIAS_NAMES",
+    "GAIN_NAMES",
+    "GyroFit",
+    "effective_time",
+    "fit_gyro",
+    "integrate",
+    "rotation_vector",
+]
