@@ -1132,6 +1132,97 @@ def plan(
         console.print(f"   then: {planner.predicted_line(pose)}")
 
 
+# ----------------------------------------------------------------------------- noise
+def _unit(text: str | None) -> str | float | None:
+    """A unit option: a name (``g``, ``deg/s``) or SI units per raw unit (a number)."""
+    if text is None:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+@cli.command()
+@click.argument("log", type=click.Path())
+@click.option("--cal", "cal_json", help="Analyse the readings as this calibration corrects them.")
+@click.option(
+    "--still",
+    type=click.Choice(["auto", "detect", "all"]),
+    default="auto",
+    show_default=True,
+    help="The still intervals detected, the whole log as one still recording, or auto.",
+)
+@click.option(
+    "--export",
+    "export_format",
+    type=click.Choice(["kalibr"]),
+    help="Write Kalibr/OpenVINS imu.yaml (to -o, else stdout).",
+)
+@click.option("-o", "--output", help="File for --export (e.g. imu.yaml).")
+@click.option("--plot", help="Allan deviation figure: a .png, or .html with the table.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@click.option("--accel-unit", help="Raw accelerometer unit: g, mg, m/s^2, or m/s^2 per count.")
+@click.option("--gyro-unit", help="Raw gyroscope unit: deg/s, rad/s, or rad/s per count.")
+@click.option("--rate", type=_POSITIVE, help="Sample rate in Hz when there is no time column.")
+@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
+@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
+@click.option("--gyro-cols", help="Gyroscope columns x,y,z (default: recognised).")
+@click.option("--time-col", help="Time column (s; ms/us/ns recognised).")
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
+@_force
+def noise(
+    log: str,
+    cal_json: str | None,
+    still: str,
+    export_format: str | None,
+    output: str | None,
+    plot: str | None,
+    as_json: bool,
+    accel_unit: str | None,
+    gyro_unit: str | None,
+    rate: float | None,
+    quiet: bool,
+    force: bool,
+    **cols: str | None,
+) -> None:
+    """Noise of each sensor from the still parts of LOG: Allan deviation, noise density,
+    random walk and bias instability; Kalibr / OpenVINS imu.yaml with --export kalibr."""
+    if output is not None and export_format is None:
+        raise click.UsageError("-o is the file for --export; add --export kalibr")
+    inputs = {"log": log, **({"calibration": cal_json} if cal_json else {})}
+    _claim([output, plot], inputs, force)
+    cal = _read_cal(cal_json) if cal_json else None
+    with _progress(quiet) as progress:
+        if progress is not None:
+            progress(f"reading {log} and computing Allan deviations")
+        report = _lazy(".noise").characterise_noise(
+            log,
+            cal=cal,
+            still=still,
+            rate=rate,
+            accel_unit=_unit(accel_unit),
+            gyro_unit=_unit(gyro_unit),
+            **{k: v for k, v in cols.items() if v is not None},
+        )
+        yaml = report.kalibr_yaml() if export_format == "kalibr" else None
+        if plot is not None:
+            _check_matplotlib()
+            _lazy(".output.noise_figures").write_noise_figure(report, plot)
+    if yaml is not None and output is not None:
+        _files.write_text(output, yaml)
+    if as_json:
+        click.echo(json.dumps(report.to_dict(), indent=2, allow_nan=False))
+    elif yaml is not None and output is None:
+        click.echo(yaml, nl=False)
+    elif not quiet:
+        _lazy(".output.summary").print_noise(_console(), report)
+    if not quiet and not as_json:
+        for path in (output, plot):
+            if path is not None:
+                click.echo(f"wrote {path}", err=output is None and yaml is not None)
+
+
 # ----------------------------------------------------------------------------- demo
 def _deltas(session: Session, cal: Calibration, n_found: int) -> dict[str, float | None]:
     """δ of Eq. 19 per sensor, when the poses found are the simulated ones."""

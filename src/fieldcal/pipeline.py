@@ -328,6 +328,18 @@ def _gyro_stage(
             "its fit failed in floating point; check that the time column is in seconds "
             "(or give --time-col / --rate)"
         )
+    used = len(fit.segments)
+    if fit.rejected:
+        notes.append(
+            f"gyroscope: {len(fit.rejected)} of {used + len(fit.rejected)} motion segments left "
+            "out: their integrated turn disagrees with the poses' (a bump, a gap in the log, or "
+            "timestamps that are not the samples' own)"
+        )
+    if fit.p_value < 0.01:
+        notes.append(
+            f"gyroscope: the motion segments disagree with the model beyond their noise "
+            f"(p = {fit.p_value:.2g}); its error bars are widened by {fit.widening:.3g}"
+        )
     return with_gyro(cal, fit, log, time)
 
 

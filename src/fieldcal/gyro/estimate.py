@@ -1212,19 +1212,25 @@ def _stages(path: Array) -> list[NDArray[np.int64]]:
 
 def _unobservable_message(names: tuple[str, ...], method: str) -> str:
     """One line naming the gain entries the turns leave free and what to record."""
-    axes = sorted({int(n[-2]) for n in names})
+    rows = sorted({int(n[-4]) for n in names})  # gyro.gain[j,k]: j the raw axis, k the body's
+    columns = sorted({int(n[-2]) for n in names})
+    turn = ", ".join("xyz"[a] for a in columns)
     if len(names) == 9:
         why = (
             "no turn tilts the device (gravity sees only tilts)"
             if method == "gravity"
             else "the turns do not span the body axes"
         )
+    elif len(columns) < 3:
+        why = "no turn is about body axis " + " or ".join("xyz"[a] for a in columns)
+    elif len(rows) == 1:
+        why = f"the turns kept hardly move the gyroscope's raw axis {'xyz'[rows[0]]}"
+        turn = "x, y and z"
     else:
-        why = "no turn is about body axis " + " or ".join("xyz"[a] for a in axes)
+        why = "the turns do not span the body axes"
     return (
         f"the turns between the poses do not determine {', '.join(names)} ({why}): add turns "
-        f"about body axis {', '.join('xyz'[a] for a in axes)}, or pass allow_partial=True to fit "
-        "the rest"
+        f"about body axis {turn} (library: allow_partial=True fits the rest)"
     )
 
 
@@ -1254,20 +1260,7 @@ def _robust_scale(ev: _Eval, cov: Callable[[_Eval, float], Array], d: int) -> fl
     def median_stat(s2: float) -> float:
         return float(np.median(_segment_statistics(ev, cov(ev, s2), d)))
 
-    if median_stat(0.0) <= target:
-        return 0.0
-    lo, hi = 0.0, max(_initial_scale(ev), 1e-12)
-    while median_stat(hi) > target:
-        hi *= 4.0
-        if hi > 1e6:
-            return hi
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        if median_stat(mid) > target:
-            lo = mid
-        else:
-            hi = mid
-    return hi
+    return _falls_to(median_stat, target, _initial_scale(ev), 50)
 
 
 def _initial_scale(ev: _Eval) -> float:
@@ -1285,16 +1278,23 @@ def _match_chi2(ev: _Eval, cov: Callable[[_Eval, float], Array], dof: int, scale
         z = np.linalg.solve(Lc, r)
         return float(z @ z)
 
-    if chi2(0.0) <= dof:
+    return _falls_to(chi2, dof, scale2, 60)
+
+
+def _falls_to(f: Callable[[float], float], target: float, start: float, steps: int) -> float:
+    """The variance ``s ≥ 0`` at which the decreasing ``f(s)`` falls to ``target`` (0 when
+    ``f(0)`` already does): bracketed by quadrupling from ``start`` (given up above 10⁶),
+    then ``steps`` bisections."""
+    if f(0.0) <= target:
         return 0.0
-    lo, hi = 0.0, max(scale2, 1e-12)
-    while chi2(hi) > dof:
+    lo, hi = 0.0, max(start, 1e-12)
+    while f(hi) > target:
         hi *= 4.0
         if hi > 1e6:
             return hi
-    for _ in range(60):
+    for _ in range(steps):
         mid = 0.5 * (lo + hi)
-        if chi2(mid) > dof:
+        if f(mid) > target:
             lo = mid
         else:
             hi = mid

@@ -8,7 +8,7 @@ and reasons are the user's or the library's text, never rich markup.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rich import box
@@ -17,6 +17,9 @@ from rich.table import Table
 from rich.text import Text
 
 from ..calibration import Calibration, SensorCalibration
+
+if TYPE_CHECKING:  # the report is only printed here: loading noise is the command's
+    from ..noise import NoiseReport
 
 __all__ = ["MAX_POSE_ROWS", "print_summary", "print_truth_comparison", "print_verdict"]
 
@@ -348,3 +351,36 @@ def print_truth_comparison(
             )
         else:
             _say(console, f"δ ({name}, Eq. 19) = {delta:.4f} noise standard deviations")
+
+
+def print_noise(console: Console, report: NoiseReport) -> None:
+    """A noise report: what was analysed, then per sensor a table of N, K and B per axis with
+    their standard errors, in the readings' units, and the notes."""
+    _say(
+        console,
+        f"{report.source}: {report.seconds:.4g} s of still data at {report.rate:.4g} Hz in "
+        f"{len(report.stretches)} stretch(es), longest {report.longest:.4g} s ({report.still})",
+    )
+    labels = {"accel": "accelerometer", "gyro": "gyroscope", "mag": "magnetometer"}
+    for name, fit in report.fits.items():
+        low, high = fit.tau_range
+        table = Table(
+            title=f"{labels.get(name, name)} ({fit.unit}), τ fitted {low:.3g}–{high:.3g} s",
+            title_justify="left",
+            box=_BOX,
+        )
+        for column in ("axis", f"N ({fit.unit}/√Hz)", f"K ({fit.unit}/s/√Hz)", f"B ({fit.unit})"):
+            table.add_column(column, justify="right")
+        for j, axis in enumerate("xyz"):
+            walk = _pm(fit.random_walk[j], fit.random_walk_std[j], ".3g")
+            if not fit.random_walk_resolved[j]:
+                walk += " (not resolved)"
+            table.add_row(
+                axis,
+                _pm(fit.noise_density[j], fit.noise_density_std[j], ".3g"),
+                walk,
+                _pm(fit.bias_instability[j], fit.bias_instability_std[j], ".3g"),
+            )
+        console.print(table)
+    for note in report.notes:
+        _say(console, f"note: {note}")
