@@ -30,6 +30,8 @@ RANK = {
     "geometry": 1,
     "metrics": 1,
     "serialize": 1.5,
+    "comparison": 1.8,  # two calibrations side by side (called by the calibration)
+    "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)
     "calibration": 2,
     "stats": 3,
     "logs": 3,
@@ -39,6 +41,7 @@ RANK = {
     "trust": 5,
     "api": 6,
     "noise": 6,  # noise characterisation of a log (Allan deviation, imu.yaml)
+    "store": 6.5,  # calibrations over time: a folder by device and date
     "pipeline": 7,
     "output": 7,
     "capture": 7.5,  # live streams: sources, the recorder, the session, the view
@@ -131,8 +134,16 @@ def test_method_registry_validates_and_dispatches():
 def test_export_registry_states_each_format_once():
     cal = fieldcal.Calibration.from_json((DATA / "calibration-v0.1.json").read_text())
     for name, fmt in FORMATS.items():
-        text = fieldcal.output.exports.export(cal, name)
-        assert fmt.suffix.startswith(".") and text.strip()
+        assert fmt.suffix.startswith(".")
+        if fmt.binary is not None:
+            assert fieldcal.output.exports.export_bytes(cal, name)
+            continue
+        try:
+            text = fieldcal.output.exports.export(cal, name)
+        except fieldcal.errors.InputError as exc:  # a format may refuse what it cannot hold
+            assert "\n" not in str(exc)
+            continue
+        assert text.strip()
     with pytest.raises(ValueError, match="c-header"):
         fieldcal.output.exports.export(cal, "nope")
 

@@ -389,3 +389,32 @@ def test_the_gyroscope_travels_with_the_calibration():
         Calibration.from_json(broken.to_json())
     with pytest.raises(ValueError, match="no gyro"):
         _full_calibration().correct_gyro(omega)
+
+
+def test_compare_flags_what_moved_beyond_the_combined_error():
+    """Against itself nothing changed; a magnetometer bias moved by 10 of its standard errors
+    is flagged alone (z = 10/√2 with both calibrations' errors combined); different units are
+    refused in one line."""
+    session = fieldcal.simulate("paper", seed=4)
+    cal = fieldcal.calibrate(session.accel, session.mag)
+    assert cal.compare(cal).changed == ()
+    std = cal.mag.bias_std[1]
+    moved = dataclasses.replace(
+        cal, mag=dataclasses.replace(cal.mag, bias=cal.mag.bias + np.array([0.0, 10 * std, 0.0]))
+    )
+    result = cal.compare(moved)
+    assert [c.name for c in result.changed] == ["mag.bias[1]"]
+    assert result.changed[0].z == pytest.approx(10 / np.sqrt(2), rel=1e-9)
+    with pytest.raises(fieldcal.InputError, match="different units"):
+        cal.compare(cal.with_field_magnitudes(gravity=9.80665))
+
+
+def test_notebook_html_shows_the_verdict_numbers_and_poses_escaped():
+    session = fieldcal.simulate("paper", seed=4)
+    cal = fieldcal.calibrate(session.accel, session.mag)
+    odd = dataclasses.replace(cal, verdict=fieldcal.Verdict("warn", ("<b>bold</b> & co",)))
+    page = odd._repr_html_()
+    assert "verdict: WARN" in page and "&lt;b&gt;bold&lt;/b&gt; &amp; co" in page
+    assert "<b>bold" not in page
+    assert page.count("<circle") == cal.n_poses
+    assert f"{cal.mag.bias[0]:.5g} ± {cal.mag.bias_std[0]:.2g}" in page

@@ -13,7 +13,8 @@ import pytest
 
 import fieldcal
 from fieldcal.calibration import Calibration, SensorCalibration
-from fieldcal.output.exports import FORMATS, export, for_path, markdown_table
+from fieldcal.errors import InputError
+from fieldcal.output.exports import FORMATS, export, export_bytes, for_path, markdown_table
 from fieldcal.output.exports.c_header import c_float
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -55,12 +56,22 @@ def _cal(accel_gain, accel_bias, mag_gain, mag_bias):
 
 
 def test_registry(cal):
-    assert list(FORMATS) == ["c-header", "matlab", "magneto", "json"]
+    assert list(FORMATS) == [
+        "c-header", "matlab", "magneto", "json", "ardupilot", "px4", "mat", "kalibr"
+    ]  # fmt: skip
     for name, fmt in FORMATS.items():
         assert fmt.name == name and fmt.suffix.startswith(".")
-        assert fmt.formula in export(cal, name)  # the text states the formula word for word
-        assert fmt.write(cal) == export(cal, name)
         assert for_path(f"out/cal{fmt.suffix.upper()}") is fmt
+        if fmt.binary is not None:  # a binary file (.mat): bytes, never text
+            assert export_bytes(cal, name)
+            continue
+        try:
+            text = export(cal, name)
+        except InputError as exc:  # autopilots need physical units, Kalibr a gyroscope
+            assert "\n" not in str(exc)
+            continue
+        assert fmt.formula in text  # the text states the formula word for word
+        assert fmt.write(cal) == text
     assert len({f.suffix for f in FORMATS.values()}) == len(FORMATS)
     assert for_path("cal.xlsx") is None
 

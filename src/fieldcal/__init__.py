@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from .logs import Log
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
+    from .store import Store
     from .trust.plan import PlannedPose, Targets, plan_poses
 
 __all__ = [
@@ -51,6 +52,7 @@ __all__ = [
     "SensorCalibration",
     "SensorStats",
     "Session",
+    "Store",
     "Targets",
     "Verdict",
     "__version__",
@@ -78,6 +80,7 @@ _LAZY = {
     "PlannedPose": "fieldcal.trust.plan",
     "Targets": "fieldcal.trust.plan",
     "plan_poses": "fieldcal.trust.plan",
+    "Store": "fieldcal.store",
 }
 
 

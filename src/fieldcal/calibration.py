@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._frozen import ArrayDataclass, frozen_array
 from ._version import __version__
+from .comparison import Comparison, compare
 from .geometry.frames import (
     dip_of,
     misalignment_angle_deg,
@@ -38,6 +39,7 @@ from .geometry.frames import (
     orthogonal_polar_factor,
     twin_flip,
 )
+from .notebook import calibration_html
 from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
 
 __all__ = [
@@ -544,6 +546,17 @@ class Calibration(ArrayDataclass):
     def correct_mag(self, raw: ArrayLike) -> Array:
         """Raw magnetometer readings (..., 3) -> body-frame magnetic field (inverse model)."""
         return self.sensor("mag").correct(raw)
+
+    def compare(self, other: Calibration, *, sigmas: float = 3.0) -> Comparison:
+        """Which parameters of ``other`` (a later calibration of the same device) differ from
+        this one's by more than ``sigmas`` combined standard errors
+        (:mod:`fieldcal.comparison`)."""
+        return compare(self, other, sigmas=sigmas)
+
+    def _repr_html_(self) -> str:
+        """The verdict, the key numbers with ± and units, rejected poses and a coverage
+        picture, for notebooks (:mod:`fieldcal.notebook`)."""
+        return calibration_html(self)
 
     def correct_gyro(self, raw: ArrayLike) -> Array:
         """Raw gyroscope readings (..., 3) -> body-frame angular rate in rad/s,

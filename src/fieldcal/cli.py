@@ -797,7 +797,14 @@ def export(cal_json: str, fmt: str | None, output: str | None, force: bool) -> N
     if fmt is None:
         by_suffix = exports.for_path(output) if output else None
         fmt = by_suffix.name if by_suffix else exports.DEFAULT
-    text = exports.export(_read_cal(cal_json), fmt)
+    cal = _read_cal(cal_json)
+    if exports.get(fmt).binary is not None:  # a binary file (.mat) only goes to -o
+        data = exports.export_bytes(cal, fmt)
+        if not output:
+            raise InputError(f"the {fmt} format is binary: give -o FILE{exports.get(fmt).suffix}")
+        _files.write_bytes(output, data)
+        return
+    text = exports.export(cal, fmt)
     if output:
         _files.write_text(output, text if text.endswith("\n") else text + "\n")
     else:
@@ -1221,6 +1228,89 @@ def noise(
         for path in (output, plot):
             if path is not None:
                 click.echo(f"wrote {path}", err=output is None and yaml is not None)
+
+
+# ----------------------------------------------------------------------------- store
+#: The store's folder when --store is not given: $FIELDCAL_STORE, else ./fieldcal-store.
+_STORE_ENV = "FIELDCAL_STORE"
+
+
+def _store_option(f: _Command) -> _Command:
+    decorated: _Command = click.option(
+        "--store",
+        "store_dir",
+        help=f"The store's folder [default: ${_STORE_ENV}, else ./fieldcal-store].",
+    )(f)
+    return decorated
+
+
+def _open_store(store_dir: str | None) -> Any:
+    folder = store_dir or os.environ.get(_STORE_ENV) or "fieldcal-store"
+    return _lazy(".store").Store(folder)
+
+
+@cli.group()
+def store() -> None:
+    """Calibrations over time: a folder of calibration files by device and date."""
+
+
+@store.command("add")
+@click.argument("cal_json", type=click.Path())
+@click.option("--device", help="The device's id (letters, digits, . _ -) [default: from the file].")
+@_store_option
+def store_add(cal_json: str, device: str | None, store_dir: str | None) -> None:
+    """Keep CAL_JSON in the store under its device and date."""
+    cal = _read_cal(cal_json)
+    device = device or cal.options.get("device")
+    if not device:
+        raise InputError(f"{cal_json}: no device id in the file; give --device ID")
+    path = _open_store(store_dir).add(cal, device=device)
+    click.echo(f"stored {cal_json} as {path}")
+
+
+@store.command("list")
+@click.argument("device", required=False)
+@_store_option
+def store_list(device: str | None, store_dir: str | None) -> None:
+    """The devices and how many calibrations each has; with DEVICE, its calibrations."""
+    opened = _open_store(store_dir)
+    if device is None:
+        for name in opened.devices():
+            entries = opened.entries(name)
+            click.echo(
+                f"{name}: {len(entries)} calibration(s), latest {entries[-1].created:%Y-%m-%d}"
+            )
+        return
+    rows = opened.drift(device)
+    _console().print(_lazy(".output.drift").drift_table(rows))
+
+
+@store.command("drift")
+@click.argument("device")
+@click.option(
+    "--sigmas",
+    type=_POSITIVE,
+    default=3.0,
+    show_default=True,
+    help="A change is flagged beyond this many combined standard errors.",
+)
+@click.option("--plot", help="Also draw every parameter against time (.png).")
+@_store_option
+@_force
+def store_drift(
+    device: str, sigmas: float, plot: str | None, store_dir: str | None, force: bool
+) -> None:
+    """Every calibration of DEVICE against the one before: the parameters that changed
+    beyond their uncertainty; --plot draws them over time with error bars."""
+    _claim([plot], {}, force)
+    rows = _open_store(store_dir).drift(device, sigmas=sigmas)
+    drift = _lazy(".output.drift")
+    _console().print(drift.drift_table(rows))
+    if plot is not None:
+        figure = drift.drift_figure(rows)
+        with _files.replacing(plot) as temp:
+            figure.savefig(temp, format="png", dpi=90)
+        click.echo(f"wrote {plot}")
 
 
 # ----------------------------------------------------------------------------- demo

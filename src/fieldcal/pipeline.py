@@ -254,7 +254,9 @@ def run_log(
         if i in dropped:
             row["rejected"] = f"{dropped[i].sensor}: {dropped[i].reason}"
         rows.append(row)
-    provenance = {"log": log.path, "columns": log.used}
+    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    if found.rate is not None:  # the sample rate: noise densities (Kalibr) need it
+        provenance["rate"] = float(found.rate)
     cal = dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
     return LogCalibration(cal, found, tuple(notes))
 

@@ -6,7 +6,9 @@ CLI's ``--format`` choices, :func:`export`'s validation and the formats table of
 ``docs/cli.md`` (:func:`markdown_table`) come from :data:`FORMATS`.
 
 To add a format: write ``exports/<name>.py`` with ``write(cal) -> str``, ``FORMULA`` and
-``CONTENT``, and add one :class:`ExportFormat` to :data:`FORMATS`.
+``CONTENT``, and add one :class:`ExportFormat` to :data:`FORMATS`. A binary format (``mat``)
+also gives ``binary``, ``(Calibration) -> bytes``; its ``write`` refuses in one line, and
+:func:`export_bytes` is the file's content for every format.
 """
 
 from __future__ import annotations
@@ -16,9 +18,18 @@ from dataclasses import dataclass
 from pathlib import PurePath
 
 from ...calibration import Calibration
-from . import c_header, document, magneto, matlab
+from . import ardupilot, c_header, document, kalibr, magneto, mat_file, matlab, px4
 
-__all__ = ["DEFAULT", "FORMATS", "ExportFormat", "export", "for_path", "get", "markdown_table"]
+__all__ = [
+    "DEFAULT",
+    "FORMATS",
+    "ExportFormat",
+    "export",
+    "export_bytes",
+    "for_path",
+    "get",
+    "markdown_table",
+]
 
 
 @dataclass(frozen=True)
@@ -37,6 +48,9 @@ class ExportFormat:
         The correction as the format applies it, word for word as the text states it.
     content : str
         One line (Markdown) on what the text defines, for the docs.
+    binary : callable or None
+        ``(Calibration) -> bytes`` for a binary format (whose ``write`` refuses); ``None`` for
+        text.
     """
 
     name: str
@@ -44,6 +58,7 @@ class ExportFormat:
     suffix: str
     formula: str
     content: str
+    binary: Callable[[Calibration], bytes] | None = None
 
 
 FORMATS: dict[str, ExportFormat] = {
@@ -53,6 +68,17 @@ FORMATS: dict[str, ExportFormat] = {
         ExportFormat("matlab", matlab.write, ".m", matlab.FORMULA, matlab.CONTENT),
         ExportFormat("magneto", magneto.write, ".txt", magneto.FORMULA, magneto.CONTENT),
         ExportFormat("json", document.write, ".json", document.FORMULA, document.CONTENT),
+        ExportFormat("ardupilot", ardupilot.write, ".parm", ardupilot.FORMULA, ardupilot.CONTENT),
+        ExportFormat("px4", px4.write, ".params", px4.FORMULA, px4.CONTENT),
+        ExportFormat(
+            "mat",
+            mat_file.write,
+            ".mat",
+            mat_file.FORMULA,
+            mat_file.CONTENT,
+            binary=mat_file.write_bytes,
+        ),
+        ExportFormat("kalibr", kalibr.write, ".yaml", kalibr.FORMULA, kalibr.CONTENT),
     )
 }
 
@@ -106,6 +132,27 @@ def export(cal: Calibration, fmt: str) -> str:
         The text, its convention and formula stated in it.
     """
     return get(fmt).write(cal)
+
+
+def export_bytes(cal: Calibration, fmt: str) -> bytes:
+    """The file's content in format ``fmt``: the binary writer's bytes, or the text in UTF-8.
+
+    Parameters
+    ----------
+    cal : Calibration
+    fmt : str
+        A name in :data:`FORMATS`; another is a ``ValueError`` listing them.
+
+    Returns
+    -------
+    bytes
+        What ``fieldcal export -o`` writes (text ends with a newline).
+    """
+    f = get(fmt)
+    if f.binary is not None:
+        return f.binary(cal)
+    text = f.write(cal)
+    return (text if text.endswith("\n") else text + "\n").encode("utf-8")
 
 
 def markdown_table() -> str:

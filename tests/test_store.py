@@ -1,0 +1,79 @@
+"""The calibration store: a folder by device and date; latest, closest, drift."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import fieldcal
+from fieldcal.cli import cli
+from fieldcal.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def cal():
+    session = fieldcal.simulate("paper", seed=4)
+    return fieldcal.calibrate(session.accel, session.mag)
+
+
+def _at(cal, created):
+    return dataclasses.replace(cal, created=created)
+
+
+def test_add_latest_closest_and_files(cal, tmp_path):
+    store = fieldcal.Store(tmp_path / "store")
+    dates = ["2026-01-05T10:00:00+00:00", "2026-03-01T08:30:00+00:00", "2026-02-01T00:00:00+00:00"]
+    paths = [store.add(_at(cal, d), device="board-7") for d in dates]
+    assert [p.name for p in paths] == [
+        "2026-01-05T100000Z.json",
+        "2026-03-01T083000Z.json",
+        "2026-02-01T000000Z.json",
+    ]
+    again = store.add(_at(cal, dates[0]), device="board-7")  # same second: never replaced
+    assert again.name == "2026-01-05T100000Z-2.json" and paths[0].exists()
+    assert store.devices() == ["board-7"]
+    assert [e.created.month for e in store.entries("board-7")] == [1, 1, 2, 3]
+    assert store.latest("board-7").created == dates[1]
+    assert store.closest("board-7", "2026-02-10").created == dates[2]
+    assert store.latest("board-7") == cal  # the JSON round trip keeps every value
+    with pytest.raises(InputError, match="device id"):
+        store.add(cal, device="../escape")
+    with pytest.raises(InputError, match="no calibration of device 'other'"):
+        store.latest("other")
+
+
+def test_drift_flags_what_moved_and_nothing_else(cal, tmp_path):
+    store = fieldcal.Store(tmp_path)
+    store.add(_at(cal, "2026-01-01T00:00:00Z"), device="d1")
+    store.add(_at(cal, "2026-02-01T00:00:00Z"), device="d1")
+    moved_bias = cal.accel.bias + np.array([20 * cal.accel.bias_std[0], 0.0, 0.0])
+    moved = dataclasses.replace(cal, accel=dataclasses.replace(cal.accel, bias=moved_bias))
+    store.add(_at(moved, "2026-03-01T00:00:00Z"), device="d1")
+    rows = store.drift("d1")
+    assert rows[0].since_previous is None
+    assert rows[1].since_previous.changed == ()
+    assert [c.name for c in rows[2].since_previous.changed] == ["accel.bias[0]"]
+    result = CliRunner().invoke(
+        cli, ["store", "drift", "d1", "--store", str(tmp_path), "--plot", str(tmp_path / "d.png")]
+    )
+    assert result.exit_code == 0, result.output
+    assert "accel.bias[0] (+14.1)" in result.output  # 20 σ over √2 combined
+    assert (tmp_path / "d.png").stat().st_size > 1000
+    listed = CliRunner().invoke(cli, ["store", "list", "--store", str(tmp_path)])
+    assert listed.output.strip() == "d1: 3 calibration(s), latest 2026-03-01"
+
+
+def test_store_add_needs_a_device(cal, tmp_path):
+    path = tmp_path / "cal.json"
+    path.write_text(cal.to_json())
+    result = CliRunner().invoke(cli, ["store", "add", str(path), "--store", str(tmp_path / "s")])
+    assert result.exit_code == 2 and "--device" in result.stderr
+    ok = CliRunner().invoke(
+        cli, ["store", "add", str(path), "--device", "b1", "--store", str(tmp_path / "s")]
+    )
+    assert ok.exit_code == 0 and np.all(
+        fieldcal.Store(tmp_path / "s").latest("b1").mag.gain == cal.mag.gain
+    )
