@@ -944,12 +944,12 @@ _CAPTURE_FILES = ("log.csv", "cal.json", "report.html")
 
 
 def _capture_folder(out_dir: str | None, force: bool, inputs: dict[str, str]) -> Path:
-    """The capture's folder, made; its files checked before any line is read."""
+    """The capture's folder; its files checked before any line is read."""
     folder = Path(out_dir or time.strftime("capture-%Y%m%d-%H%M%S"))
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder}: exists and is not a folder; give --out a folder")
+    # the recorder makes the folder once the source is open: a wrong port leaves nothing
     _claim([folder / name for name in _CAPTURE_FILES], inputs, force, folders_made=True)
-    folder.mkdir(parents=True, exist_ok=True)
     return folder
 
 
