@@ -449,3 +449,25 @@ def test_ctrl_c_writes_what_was_received(tmp_path):
     assert 0 < len(recorded) - 1 <= written  # every row received (the header aside)
     cal = fieldcal.Calibration.from_json((out / "cal.json").read_text())
     assert len(cal.poses) >= 9, "\n".join(lines)
+
+
+def test_a_replay_without_time_at_a_stated_rate_equals_calibrate(recorded, tmp_path):
+    """A log with no time column replayed at full speed with --rate: the arrival times (as
+    fast as the disk) are recorded but not used, so the result is calibrate's at that rate."""
+    path, _ = recorded
+    header, *rows = path.read_text().splitlines()
+    names = header.split(",")
+    keep = [k for k, n in enumerate(names) if n != "t"]
+    timeless = tmp_path / "timeless.csv"
+    lines = [",".join(names[k] for k in keep)]
+    lines += [",".join(r.split(",")[k] for k in keep) for r in rows]
+    timeless.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cap"
+    result, said = _plain_run(
+        ["capture", "--from", str(timeless), "--plain", "--out", str(out), "--rate", "100"]
+    )
+    assert result.exit_code == 0, result.output
+    assert not any(line.startswith("warning") for line in said)
+    captured = fieldcal.Calibration.from_json((out / "cal.json").read_text())
+    direct = fieldcal.calibrate_log(timeless, rate=100.0)
+    np.testing.assert_array_equal(captured.mag.gain, direct.mag.gain)

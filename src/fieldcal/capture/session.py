@@ -213,7 +213,19 @@ class CaptureSession:
         if self.parser.n_rows == 0:
             return None
         if self._log_rows != self.parser.n_rows:
-            self._log = load_log(self.parser.table(), **self._read_options())
+            table = self.parser.table()
+            arrival = self.parser.arrival_column
+            if (
+                self.options.detection.get("rate") is not None
+                and arrival == self.parser.time_column
+            ):
+                # a stream without its own time, at a rate the user states: the arrival times
+                # (a replay's are as fast as the disk) are recorded, not used
+                names = [n for n in table.names if n != arrival]
+                table = dataclasses.replace(
+                    table, names=names, columns={n: table.columns[n] for n in names}
+                )
+            self._log = load_log(table, **self._read_options())
             self._log_rows = self.parser.n_rows
         return self._log
 
@@ -221,7 +233,10 @@ class CaptureSession:
         read = {k: v for k, v in self.options.read.items() if v is not None}
         # a device reset mid-capture restarts its clock: a new segment, not an error
         read["split_on_reset"] = True
-        if "time_col" not in read and self.parser.time_column is not None:
+        stated_rate = self.options.detection.get("rate") is not None
+        arrival_only = self.parser.time_column == self.parser.arrival_column
+        own_time = self.parser.time_column is not None and not (stated_rate and arrival_only)
+        if "time_col" not in read and own_time:
             read["time_col"] = self.parser.time_column
         return read
 
