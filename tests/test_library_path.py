@@ -14,6 +14,7 @@ from click.testing import CliRunner
 import fieldcal
 from fieldcal.cli import cli
 from fieldcal.errors import InputError
+from fieldcal.geometry.rotations import rotation_angle_deg
 from fieldcal.simulation.continuous import simulate_continuous
 
 
@@ -202,6 +203,16 @@ def test_the_gyroscope_from_the_same_log(tmp_path):
     z_bias = (cal.gyro.bias - truth.bias) / cal.gyro.bias_std
     assert np.abs(z_gain).max() < 4 and np.abs(z_bias).max() < 4, (z_gain, z_bias)
     assert len(cal.gyro_segments) == len(sim.segments) - 1
+    # each segment's turn, integrated by the calibrated gyroscope, is the simulated one (the
+    # residual angles run to about a degree)
+    R = np.asarray(sim.session.drawn["rotations"])
+    true_turns = rotation_angle_deg(R[1:] @ np.swapaxes(R[:-1], 1, 2))
+    turns = [s["angle_deg"] for s in cal.gyro_segments]
+    np.testing.assert_allclose(turns, true_turns, atol=3.0)
+    # the accelerometer alone: the gravity directions determine the bias as well
+    alone = fieldcal.calibrate_log({k: v for k, v in sim.columns.items() if k[0] != "m"})
+    assert alone.options["gyro"]["method"] == "gravity"
+    assert np.abs((alone.gyro.bias - truth.bias) / alone.gyro.bias_std).max() < 4
     again = fieldcal.Calibration.from_json(cal.to_json())
     rates = np.column_stack([sim.columns[f"g{a}"] for a in "xyz"])
     np.testing.assert_allclose(again.correct_gyro(rates), cal.correct_gyro(rates), atol=1e-12)

@@ -704,20 +704,21 @@ def characterise_noise(
                     f"{_NAMES[sensor]}: the shortest τ lie below the white-noise line (a low-pass "
                     f"filter before sampling); fitted from τ = {model.tau_range[0]:.3g} s"
                 )
-            unresolved = ~(model.random_walk > 2.0 * model.random_walk_std)
-            if sensor in _UNITS and np.any(unresolved):
-                notes.append(
-                    f"{_NAMES[sensor]}: the random walk is not resolved on axis "
-                    f"{','.join('xyz'[j] for j in np.flatnonzero(unresolved))} (fit up to "
-                    f"τ = {model.tau_range[1]:.3g} s); the yaml gets its upper bound"
-                )
-            fits[sensor] = NoiseFit(
+            fit = NoiseFit(
                 sensor=sensor,
                 unit=unit,
                 si_scale=si,
                 curve=curve.with_edf(model.edf),
                 model=model,
             )
+            unresolved = ~fit.random_walk_resolved
+            if sensor in _UNITS and np.any(unresolved):
+                notes.append(
+                    f"{_NAMES[sensor]}: the random walk is not resolved on axis "
+                    f"{','.join('xyz'[j] for j in np.flatnonzero(unresolved))} (fit up to "
+                    f"τ = {model.tau_range[1]:.3g} s); the yaml gets its upper bound"
+                )
+            fits[sensor] = fit
     stretches = tuple((int(log.index[a]), int(log.index[b - 1]) + 1) for a, b in ranges)
     return NoiseReport(
         source=log.path,

@@ -21,8 +21,9 @@ from .api import calibrate
 from .calibration import Calibration, ParameterCovariance, SensorCalibration
 from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
-from .geometry.rotations import hat
+from .geometry.rotations import hat, rotation_angle_deg
 from .gyro.estimate import GyroFit, fit_gyro
+from .gyro.integrate import integrate
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.poses import POSE_SOURCES
 from .logs.sources import read_log
@@ -305,24 +306,19 @@ def _gyro_stage(
     if any("start" not in found.entries[i] or "stop" not in found.entries[i] for i in kept):
         return skip("the poses are not intervals of the log in time order (a pose column)")
     rows = [_log_rows(log, found.entries[i]) for i in kept]
-    joint = cal.mag is not None and cal.magnetic is not None
     try:
-        if joint:
-            fit = fit_gyro(
-                time,
-                log.gyro,
-                rows,
-                cal.rotations,
-                rotation_cov=pose_rotation_covariance(cal),
-            )
+        C = pose_rotation_covariance(cal)
+        if cal.mag is not None and cal.magnetic is not None:
+            fit = fit_gyro(time, log.gyro, rows, cal.rotations, rotation_cov=C)
         else:
-            accel = np.array([found.means("accel")[i] for i in kept])
-            gravity = cal.correct_accel(accel)
-            X = np.zeros((3 * len(kept), 3 * len(kept)))
-            for k, g in enumerate(gravity):  # the direction's error from each pose's tilt
-                X[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = -hat(g)
-            C = pose_rotation_covariance(cal)
-            fit = fit_gyro(time, log.gyro, rows, gravity_body=gravity, gravity_cov=X @ C @ X.T)
+            gravity = cal.correct_accel(found.means("accel")[kept])
+            # the directions' errors from the poses' tilts: blockdiag(−[g_i]×) C blockdiag(...)ᵀ
+            H = hat(gravity)
+            n = len(kept)
+            cov = np.einsum("iab,ibjc,jdc->iajd", H, C.reshape(n, 3, n, 3), H)
+            fit = fit_gyro(
+                time, log.gyro, rows, gravity_body=gravity, gravity_cov=cov.reshape(3 * n, 3 * n)
+            )
     except InputError as exc:
         return skip(str(exc))
     except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
@@ -348,6 +344,7 @@ def _gyro_stage(
 def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64]) -> Calibration:
     """``cal`` with the gyroscope of ``fit``: its parameters, their covariance beside the
     others' (no correlation kept), the motion segments and how it was fitted."""
+    assert log.gyro is not None  # the readings it was fitted to
     sensor = SensorCalibration(gain=fit.gain, bias=fit.bias, noise_cov=fit.noise_cov)
     covariance = cal.covariance
     if covariance is not None:
@@ -358,11 +355,14 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
         covariance = ParameterCovariance((*covariance.names, *fit.covariance.names), matrix)
     segments = []
     for (first, last), residual in zip(fit.segments, fit.segment_residual_deg, strict=True):
+        # the turn the calibrated gyroscope integrates over the segment
+        turn = integrate(time[first : last + 1], fit.correct(log.gyro[first : last + 1]))
         segments.append(
             {
                 "start": int(log.index[first]),
                 "stop": int(log.index[last]) + 1,
                 "seconds": float(time[last] - time[first]),
+                "angle_deg": float(rotation_angle_deg(turn)),
                 "residual_deg": float(residual),
             }
         )

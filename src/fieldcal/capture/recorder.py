@@ -164,7 +164,7 @@ class Recorder:
         kept = self.parser.feed(line, arrival, partial=partial)
         parser = self.parser
         text = parser.last_line
-        delimiter = " " if parser.delimiter is None else parser.delimiter
+        delimiter = _delimiter(parser)
         if kept:
             out = f"{text}{delimiter}{arrival_text(arrival, parser.decimal)}\n"
             if not self._header_written:
@@ -185,10 +185,8 @@ class Recorder:
 
     def _columns_header(self) -> str:
         """The header line of a bare-number stream (written once, before its first row)."""
-        parser = self.parser
-        delimiter = " " if parser.delimiter is None else parser.delimiter
         self._header_written = True
-        return delimiter.join(parser.names) + "\n"
+        return _delimiter(self.parser).join(self.parser.names) + "\n"
 
     def _flush(self) -> None:
         self._file.flush()
@@ -244,6 +242,11 @@ class Recorder:
         self.close()
 
 
+def _delimiter(parser: LineParser) -> str:
+    """The delimiter to write: the stream's, or a blank for blank-separated fields."""
+    return " " if parser.delimiter is None else parser.delimiter
+
+
 def _header_text(parser: LineParser) -> str:
     """The header line to write: as received, without a leading ``#``; a quoted one as its
     names joined (the offline reader's fast path reads no quotes)."""
@@ -252,7 +255,7 @@ def _header_text(parser: LineParser) -> str:
     if body.startswith("#"):
         text = body[1:]
     names = parser.header or ()
-    delimiter = " " if parser.delimiter is None else parser.delimiter
+    delimiter = _delimiter(parser)
     if '"' in text and not any(delimiter in n or '"' in n or not n for n in names):
         text = delimiter.join(names)
     return text

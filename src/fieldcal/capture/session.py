@@ -204,10 +204,6 @@ class CaptureSession:
         recorded."""
         self.recorder.feed(line.text, line.arrival, partial=isinstance(line, PartialLine))
 
-    @property
-    def rows(self) -> int:
-        return self.parser.n_rows
-
     def log(self) -> Log | None:
         """The samples so far as a :class:`~fieldcal.logs.log.Log` (None before any)."""
         if self.parser.n_rows == 0:

@@ -25,6 +25,7 @@ from rich.text import Text
 
 from ..geometry.orientations import orientation_from_vectors
 from ..geometry.rotations import rotation_angle_deg
+from ..trust.plan import predicted_line
 from .session import CaptureSession, Event, calibration_line
 
 __all__ = ["LiveView", "PlainView", "coverage_map", "key_reader"]
@@ -133,7 +134,10 @@ class LiveView:
         parts.append(self._poses(session))
         parts.append(self._calibration(session))
         if session.next_pose is not None:
-            parts.append(Panel(Text(session.next_pose.words, style="bold"), title="next pose"))
+            body = Text(session.next_pose.words, style="bold")
+            if session.planned is not None:  # what the calibration should reach with it
+                body.append("\nthen: " + predicted_line(session.planned), style="")
+            parts.append(Panel(body, title="next pose"))
         if self.notes:
             parts.append(Text("\n".join(self.notes)))
         return Group(*parts)

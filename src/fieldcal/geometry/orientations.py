@@ -56,8 +56,6 @@ HEADINGS: dict[float, str] = {
 }
 #: Beyond this angle (degrees) :func:`describe` says how far the nearest candidate is.
 NEAR_DEG = 5.0
-#: The angle of a corner's axes below the horizon, degrees (35.26°).
-CORNER_DEG = float(np.degrees(np.arcsin(1.0 / np.sqrt(3.0))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,7 +279,8 @@ def orientation_from_vectors(accel_body: ArrayLike, mag_body: ArrayLike | None =
     """
     down = -_vector(accel_body, "accel_body")
     if mag_body is None:
-        ref = np.eye(3)[0] if abs(down[0]) < 0.99 else np.eye(3)[1]
+        # body x unless it is vertical (its horizontal part, |(d1, d2)|, under 1e-3)
+        ref = np.eye(3)[0] if np.hypot(down[1], down[2]) > 1e-3 else np.eye(3)[1]
     else:
         ref = _vector(mag_body, "mag_body")
     north = ref - (ref @ down) * down

@@ -404,21 +404,18 @@ class _Model:
     def n_params(self) -> int:
         return 9 + 3 * self.n
 
-    def rates(self, x: Array) -> tuple[Array, Array, Array]:
-        """Corrected raw (J, 3), the rate (J, 3), the interval bias (J, 3)."""
-        D = self.data
+    def rates(self, x: Array) -> tuple[Array, Array]:
+        """Corrected raw ``raw − b(t)`` (J, 3) and the rate (J, 3)."""
         M = x[:9].reshape(3, 3)
-        b = x[9:].reshape(self.n, 3)
-        lam = D.lam[:, None]
-        bias = (1.0 - lam) * b[D.before[D.seg]] + lam * b[D.before[D.seg] + 1]
-        u = D.raw - bias
-        return u, u @ M.T, bias
+        bias = _interval_bias(self.data, x[9:].reshape(self.n, 3))
+        u = self.data.raw - bias
+        return u, u @ M.T
 
-    def integrate(self, x: Array) -> tuple[Array, Array, Array]:
-        """Each segment's integrated rotation (M, 3, 3), the rotation before each interval
-        relative to its segment's start (J, 3, 3) and the interval steps' rotation vectors."""
+    def integrate(self, w: Array) -> tuple[Array, Array, Array]:
+        """Each segment's integrated rotation (M, 3, 3) of the rates ``w`` (J, 3), the rotation
+        before each interval relative to its segment's start (J, 3, 3) and the interval steps'
+        rotation vectors."""
         D = self.data
-        _, w, _ = self.rates(x)
         phi = -w * D.dt[:, None]
         c = cumulative_quaternions(step_quaternions(w * D.dt[:, None]))
         prev = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], c[:-1]])
@@ -429,7 +426,7 @@ class _Model:
 
     def path_length(self, x: Array) -> Array:
         """The angle (rad) each segment turns through, ``∫ |ω| dt``."""
-        _, w, _ = self.rates(x)
+        _, w = self.rates(x)
         out: Array = np.add.reduceat(np.linalg.norm(w, axis=1) * self.data.dt, self.data.first)
         return out
 
@@ -438,7 +435,8 @@ class _Model:
         a zero residual (for the observability check far from the optimum)."""
         D = self.data
         M = x[:9].reshape(3, 3)
-        total, P, phi = self.integrate(x)
+        u_corr, w = self.rates(x)
+        total, P, phi = self.integrate(w)
         m = len(D.first)
         if self.method == "rotations":
             r = rotation_vector(np.transpose(self.observed, (0, 2, 1)) @ total)
@@ -456,7 +454,6 @@ class _Model:
         cov_int = np.add.reduceat(noise, D.first, axis=0)
         J = np.zeros((m, self.d, self.n_params))
         if with_jacobian:
-            u_corr, _, _ = self.rates(x)
             dv_dM = np.einsum("jca,jb->jcab", Dj, u_corr).reshape(-1, 3, 9)
             dM = np.add.reduceat(dv_dM, D.first, axis=0)
             DM = Dj @ M
@@ -464,10 +461,11 @@ class _Model:
             db0 = -np.add.reduceat(DM * (1.0 - lam), D.first, axis=0)
             db1 = -np.add.reduceat(DM * lam, D.first, axis=0)
             J[:, :, :9] = H @ dM
-            for k in range(m):
-                i = int(D.before[k])
-                J[k, :, 9 + 3 * i : 12 + 3 * i] = H[k] @ db0[k]
-                J[k, :, 12 + 3 * i : 15 + 3 * i] = H[k] @ db1[k]
+            # the biases of the poses before (b0) and after (b1) each segment
+            seg = np.arange(m)[:, None, None]
+            cols = 9 + 3 * D.before[:, None, None] + np.arange(3)
+            J[seg, np.arange(self.d)[:, None], cols] = H @ db0
+            J[seg, np.arange(self.d)[:, None], cols + 3] = H @ db1
         return _Eval(r, J, total, cov_int, H)
 
     def pose_map(self, ev: _Eval) -> Array:
@@ -599,7 +597,7 @@ def _pose_statistics(
     typical = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
     block_scatter = np.zeros((3, 3))
     block_dof = 0
-    block_len = 0
+    block_len = max(4, round(BLOCK_SECONDS / typical))
     for i, (a, b) in enumerate(rows):
         x = raw[a:b]
         means[i] = x.mean(axis=0)
@@ -609,7 +607,6 @@ def _pose_statistics(
         scatter += d.T @ d
         dof += len(x) - 1
     for a, b in rows:
-        block_len = max(4, round(BLOCK_SECONDS / typical))
         count = (b - a) // block_len
         if count >= 2:
             blocks = raw[a : a + count * block_len].reshape(count, block_len, 3).mean(axis=1)
@@ -618,14 +615,14 @@ def _pose_statistics(
             block_dof += count - 1
     cov = scatter / max(dof, 1)
     q_white = cov * typical
-    factor = np.ones(1)
+    factor = 1.0
     if block_dof >= 10 and np.trace(cov) > 0:
         q_block = block_scatter / block_dof * (block_len * typical)
         ratio = float(np.trace(np.linalg.solve(q_white, q_block))) / 3.0
         # a low-pass filter or a wandering bias: block means vary more than white noise says
         if ratio > 1.0 + 3.0 * math.sqrt(2.0 / block_dof):
-            factor[0] = ratio
-    return means, times, durations, cov, dof, q_white * factor[0]
+            factor = ratio
+    return means, times, durations, cov, dof, q_white * factor
 
 
 def _drift(
@@ -717,11 +714,18 @@ def _guess_matrix(gain_guess: float | ArrayLike | None, unit: float) -> Array | 
     return out
 
 
+def _interval_bias(data: _Segments, b: Array) -> Array:
+    """The bias (J, 3) over each interval, linear in time between the poses' biases ``b``."""
+    lam = data.lam[:, None]
+    pose = data.before[data.seg]
+    out: Array = (1.0 - lam) * b[pose] + lam * b[pose + 1]
+    return out
+
+
 def _segment_sums(data: _Segments, p: Array) -> Array:
     """``∫ (raw − b(t)) dt`` of each segment with the still poses' biases (scaled units·s)."""
-    lam = data.lam[:, None]
-    bias = (1.0 - lam) * p[data.before[data.seg]] + lam * p[data.before[data.seg] + 1]
-    out: Array = np.add.reduceat((data.raw - bias) * data.dt[:, None], data.first, axis=0)
+    u = data.raw - _interval_bias(data, p)
+    out: Array = np.add.reduceat(u * data.dt[:, None], data.first, axis=0)
     return out
 
 

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InputError
-from ..geometry.rotations import quaternion_to_matrix
+from ..geometry.rotations import log_so3, quaternion_to_matrix
 
 __all__ = [
     "HOLDS",
@@ -247,64 +247,7 @@ def integrate(
 
 
 def rotation_vector(R: ArrayLike) -> Array:
-    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), angle in [0, π].
-
-    Through the quaternion of each matrix (Shepperd's method: the largest of the four
-    candidates, stable everywhere including near π), then ``2 atan2(|v|, w) v/|v|``."""
-    M = np.asarray(R, dtype=float)
-    tr = np.trace(M, axis1=-2, axis2=-1)
-    d = np.stack([M[..., 0, 0], M[..., 1, 1], M[..., 2, 2]], axis=-1)
-    cand = np.concatenate([tr[..., None], d], axis=-1)
-    k = np.argmax(cand, axis=-1)
-    q = np.empty((*M.shape[:-2], 4))
-    # w largest
-    w4 = np.sqrt(np.maximum(1.0 + tr, 1e-300)) * 2.0
-    qa = np.stack(
-        [
-            0.25 * w4,
-            (M[..., 2, 1] - M[..., 1, 2]) / w4,
-            (M[..., 0, 2] - M[..., 2, 0]) / w4,
-            (M[..., 1, 0] - M[..., 0, 1]) / w4,
-        ],
-        axis=-1,
-    )
-    x4 = np.sqrt(np.maximum(1.0 + 2 * d[..., 0] - tr, 1e-300)) * 2.0
-    qb = np.stack(
-        [
-            (M[..., 2, 1] - M[..., 1, 2]) / x4,
-            0.25 * x4,
-            (M[..., 0, 1] + M[..., 1, 0]) / x4,
-            (M[..., 0, 2] + M[..., 2, 0]) / x4,
-        ],
-        axis=-1,
-    )
-    y4 = np.sqrt(np.maximum(1.0 + 2 * d[..., 1] - tr, 1e-300)) * 2.0
-    qc = np.stack(
-        [
-            (M[..., 0, 2] - M[..., 2, 0]) / y4,
-            (M[..., 0, 1] + M[..., 1, 0]) / y4,
-            0.25 * y4,
-            (M[..., 1, 2] + M[..., 2, 1]) / y4,
-        ],
-        axis=-1,
-    )
-    z4 = np.sqrt(np.maximum(1.0 + 2 * d[..., 2] - tr, 1e-300)) * 2.0
-    qd = np.stack(
-        [
-            (M[..., 1, 0] - M[..., 0, 1]) / z4,
-            (M[..., 0, 2] + M[..., 2, 0]) / z4,
-            (M[..., 1, 2] + M[..., 2, 1]) / z4,
-            0.25 * z4,
-        ],
-        axis=-1,
-    )
-    choices = np.stack([qa, qb, qc, qd], axis=0)
-    q = np.take_along_axis(choices, k[None, ..., None], axis=0)[0]
-    q = np.where(q[..., :1] < 0, -q, q)  # w ≥ 0: the angle in [0, π]
-    v = q[..., 1:]
-    s = np.linalg.norm(v, axis=-1)
-    angle = 2.0 * np.arctan2(s, q[..., 0])
-    small = s < 1e-12
-    scale = np.where(small, 2.0 / np.maximum(q[..., 0], 1e-300), angle / np.where(small, 1.0, s))
-    out: Array = v * scale[..., None]
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), angle in [0, π]
+    (:func:`fieldcal.geometry.rotations.log_so3`)."""
+    out: Array = log_so3(np.asarray(R, dtype=float))
     return out

@@ -32,15 +32,21 @@ GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 
 
-def _series(rows: Sequence[DriftRow], name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Values and standard errors of ``name`` per calibration (NaN where absent)."""
-    values, stds = [], []
-    for row in rows:
-        cal = row.calibration
-        values.append(parameter_values(cal).get(name, np.nan))
-        cov = cal.covariance
-        stds.append(cov.std(name) if cov is not None and name in cov.names else np.nan)
-    return np.array(values), np.array(stds)
+def _series(rows: Sequence[DriftRow]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every parameter's values and standard errors per calibration (NaN where absent), each
+    calibration read once."""
+    values = [parameter_values(row.calibration) for row in rows]
+    names = {name for v in values for name in v}
+    out = {}
+    for name in names:
+        stds = [
+            c.std(name)
+            if (c := row.calibration.covariance) is not None and name in c.names
+            else np.nan
+            for row in rows
+        ]
+        out[name] = np.array([v.get(name, np.nan) for v in values]), np.array(stds)
+    return out
 
 
 def drift_table(rows: Sequence[DriftRow]) -> Table:
@@ -69,13 +75,14 @@ def drift_figure(rows: Sequence[DriftRow]) -> MplFigure:
         from matplotlib.figure import Figure
     except ImportError:
         raise InputError("the drift plot needs matplotlib; pip install 'fieldcal[plot]'") from None
-    groups = [g for g in GROUPS if np.any(np.isfinite(_series(rows, g[1][0])[0]))]
+    series = _series(rows)
+    groups = [g for g in GROUPS if g[1][0] in series]
     fig = Figure(figsize=(10, 2.2 * len(groups)), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(groups), 1, sharex=True))
     times = [row.entry.created for row in rows]
     for ax, (label, names) in zip(axes, groups, strict=True):
         for name in names:
-            values, stds = _series(rows, name)
+            values, stds = series[name]
             ax.errorbar(times, values, yerr=stds, marker="o", ms=3, capsize=2, label=name)
             moved = [
                 k

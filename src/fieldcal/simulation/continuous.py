@@ -17,7 +17,7 @@ from typing import Unpack
 import numpy as np
 from numpy.typing import NDArray
 
-from .device import GYRO_STREAM, GyroTruth, draw_gyro, geodesic
+from .device import GYRO_STREAM, GyroTruth, _cholesky, draw_gyro, geodesic
 from .session import Preset, Session, simulate
 
 __all__ = ["ContinuousLog", "simulate_continuous"]
@@ -99,10 +99,8 @@ def simulate_continuous(
     Ka, Km = drawn["accel_gain"], drawn["mag_gain"]
     ba, bm = drawn["accel_bias"], drawn["mag_bias"]
     g, h = drawn["gravity"], drawn["magnetic"]
-    chol_a = (
-        np.linalg.cholesky(drawn["accel_cov"]) if np.any(drawn["accel_cov"]) else np.zeros((3, 3))
-    )
-    chol_m = np.linalg.cholesky(drawn["mag_cov"]) if np.any(drawn["mag_cov"]) else np.zeros((3, 3))
+    chol_a = _cholesky(np.asarray(drawn["accel_cov"]))
+    chol_m = _cholesky(np.asarray(drawn["mag_cov"]))
 
     accel_parts, mag_parts, gyro_parts, segments = [], [], [], []
     normal_parts: list[Array] = []  # the gyroscope's noise, drawn where it always was in the stream

@@ -86,7 +86,6 @@ __all__ = [
     "AllanDeviation",
     "NoiseModel",
     "allan_deviation",
-    "avar_model",
     "chi2_quantile",
     "cluster_sizes",
     "correlation",
@@ -427,11 +426,11 @@ def allan_deviation(
             "consecutive samples"
         )
     lengths = np.array([len(r) for r in runs], dtype=np.int64)
-    m = cluster_sizes(int(lengths.max()), per_decade)
+    longest = int(lengths.max())
+    m = cluster_sizes(longest, per_decade)
     d = runs[0].shape[1]
     sums = np.zeros((len(m), d))
     counts = np.zeros(len(m), dtype=np.int64)
-    longest = int(lengths.max())
     theta = np.empty(longest + 1)
     work = np.empty(longest + 1)
     for run in runs:
@@ -483,16 +482,6 @@ def _design(taus: Array) -> Array:
     """Columns of σ²(τ) per unit of ``(N², B², K²)``."""
     t = np.asarray(taus, dtype=float)
     return np.column_stack([1.0 / t, np.full_like(t, FLICKER), t / 3.0])
-
-
-def avar_model(
-    taus: ArrayLike, noise_density: float, bias_instability: float, random_walk: float
-) -> Array:
-    """The model's Allan variance ``N²/τ + B² (2 ln 2/π) + K² τ/3`` at ``taus`` (s)."""
-    t = np.asarray(taus, dtype=float)
-    return np.asarray(
-        noise_density**2 / t + bias_instability**2 * FLICKER + random_walk**2 * t / 3.0
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -794,7 +783,6 @@ def fit_noise_model(
             break
         low, low_pass = float(later.min()), True
         rows, fits = fit(low)
-    fitted = rows
     p_all = np.array([f[0] for f in fits])
     cov = np.array([f[2] for f in fits])
     # the EDF of every τ of the curve (fitted or not) for the type the model says dominates
@@ -813,7 +801,7 @@ def fit_noise_model(
         bias_instability_std=frozen_array(stds[:, 1]),
         random_walk=frozen_array(values[:, 2]),
         random_walk_std=frozen_array(stds[:, 2]),
-        tau_range=(float(taus[fitted].min()), float(taus[fitted].max())),
+        tau_range=(float(taus[rows].min()), float(taus[rows].max())),
         edf=frozen_array(edf),
         covariance=frozen_array(cov),
         reduced_chi2=frozen_array(chi2),

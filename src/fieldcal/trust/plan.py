@@ -713,11 +713,6 @@ def _unit(x: Array) -> Array:
     return x / np.linalg.norm(x, axis=-1, keepdims=True)
 
 
-def _angles(a: Array, b: Array) -> Array:
-    """Angles (degrees) between unit vectors a (n, 3) and b (m, 3): (n, m)."""
-    return np.degrees(np.arccos(np.clip(a @ b.T, -1.0, 1.0)))
-
-
 def _centred(x: Array) -> Array:
     """Raw means minus a sphere's centre fitted to them (``|x|² = 2cᵀx + k``), when at least
     5 poses determine it well; else as given. An offset (accelerometer bias, hard iron) as

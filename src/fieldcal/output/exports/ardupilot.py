@@ -18,7 +18,7 @@ accelerometer keeps its diagonal only; what each drops is computed by
 from __future__ import annotations
 
 from ...calibration import Calibration
-from .autopilot import autopilot
+from .autopilot import accel_error_text, autopilot, parameters
 from .common import comment_header, exact
 
 __all__ = ["CONTENT", "FORMULA", "write"]
@@ -51,7 +51,6 @@ def write(cal: Calibration) -> str:
         A unit that cannot be converted, a missing sensor, mirrored magnetometer axes.
     """
     ap = autopilot(cal, "mG")
-    M, ofs = ap.mag_matrix, -ap.mag_bias
     lines = comment_header(cal, "#")
     lines += [
         f"# ArduPilot convention: {FORMULA}",
@@ -66,18 +65,15 @@ def write(cal: Calibration) -> str:
         "# magnetometer's own (symmetric) frame: rotated by "
         f"{ap.misalignment_deg:.4f} deg from the accelerometer's.",
         "# DROPPED: INS_ACCSCAL is per axis, so the accelerometer's cross-axis terms are lost:",
-        f"# error up to {ap.accel_error_bound:.6g} m/s² at 1 g "
-        f"({100 * ap.accel_error_bound / 9.80665:.4g} % of g), any direction.",
+        f"# {accel_error_text(ap)}",
         "# The gyroscope is not written: ArduPilot estimates its offsets at boot.",
     ]
-    for i, axis in enumerate("XYZ"):
-        lines.append(f"COMPASS_OFS_{axis} {exact(ofs[i])}")
-    for i, axis in enumerate("XYZ"):
-        lines.append(f"COMPASS_DIA_{axis} {exact(M[i, i])}")
-    for axis, (r, c) in zip("XYZ", ((0, 1), (0, 2), (1, 2)), strict=True):
-        lines.append(f"COMPASS_ODI_{axis} {exact(M[r, c])}")
-    for i, axis in enumerate("XYZ"):
-        lines.append(f"INS_ACCOFFS_{axis} {exact(ap.accel_bias[i])}")
-    for i, axis in enumerate("XYZ"):
-        lines.append(f"INS_ACCSCAL_{axis} {exact(ap.accel_scale[i])}")
+    names = (
+        "COMPASS_OFS_{}",
+        "COMPASS_DIA_{}",
+        "COMPASS_ODI_{}",
+        "INS_ACCOFFS_{}",
+        "INS_ACCSCAL_{}",
+    )
+    lines += [f"{name} {exact(value)}" for name, value in parameters(ap, -ap.mag_bias, names)]
     return "\n".join(lines) + "\n"

@@ -32,7 +32,15 @@ from ...geometry.frames import orthogonal_polar_factor
 from ...geometry.rotations import rotation_angle_deg
 from .common import corrections
 
-__all__ = ["STANDARD_GRAVITY", "AutopilotCalibration", "accel_factor", "autopilot", "mag_factor"]
+__all__ = [
+    "STANDARD_GRAVITY",
+    "AutopilotCalibration",
+    "accel_error_text",
+    "accel_factor",
+    "autopilot",
+    "mag_factor",
+    "parameters",
+]
 
 Array = NDArray[np.float64]
 
@@ -182,4 +190,31 @@ def autopilot(cal: Calibration, mag_unit: str) -> AutopilotCalibration:
         accel_factor=ca,
         misalignment_deg=float(rotation_angle_deg(U_m @ U_a.T)),
         accel_error_bound=float(np.linalg.norm(E, 2) * ca * g),
+    )
+
+
+def parameters(
+    ap: AutopilotCalibration, mag_offset: Array, names: tuple[str, str, str, str, str]
+) -> list[tuple[str, float]]:
+    """The fifteen parameters both autopilots take, in the order both files write them.
+
+    ``names`` are the templates (``{}`` for the axis X, Y, Z) of the compass offset
+    (``mag_offset``), the compass matrix's diagonal, its off-diagonal at (0,1), (0,2), (1,2),
+    the accelerometer offset (``accel_bias``) and its per-axis scale.
+    """
+    M = ap.mag_matrix
+    groups = (mag_offset, np.diag(M), M[[0, 0, 1], [1, 2, 2]], ap.accel_bias, ap.accel_scale)
+    return [
+        (name.format(axis), float(values[i]))
+        for name, values in zip(names, groups, strict=True)
+        for i, axis in enumerate("XYZ")
+    ]
+
+
+def accel_error_text(ap: AutopilotCalibration) -> str:
+    """The stated bound of the per-axis accelerometer, as both files write it."""
+    bound = ap.accel_error_bound
+    return (
+        f"error up to {bound:.6g} m/s² at 1 g ({100 * bound / STANDARD_GRAVITY:.4g} % of g), "
+        "any direction."
     )

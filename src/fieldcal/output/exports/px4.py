@@ -20,7 +20,7 @@ drops, written in the file). ``_rotation`` is the board/sensor rotation, left to
 from __future__ import annotations
 
 from ...calibration import Calibration
-from .autopilot import autopilot
+from .autopilot import accel_error_text, autopilot, parameters
 from .common import comment_header, exact
 
 __all__ = ["CONTENT", "FORMULA", "write"]
@@ -56,7 +56,6 @@ def write(cal: Calibration) -> str:
         A unit that cannot be converted, a missing sensor, mirrored magnetometer axes.
     """
     ap = autopilot(cal, "G")
-    S = ap.mag_matrix
     lines = comment_header(cal, "#")
     lines += [
         f"# PX4 convention: {FORMULA}",
@@ -69,19 +68,17 @@ def write(cal: Calibration) -> str:
         "# DROPPED: PX4's scale matrix is symmetric, so the magnetometer comes out in its own",
         f"# (symmetric) frame: rotated by {ap.misalignment_deg:.4f} deg from the accelerometer's.",
         "# DROPPED: CAL_ACC0_*SCALE is per axis, so the cross-axis terms are lost:",
-        f"# error up to {ap.accel_error_bound:.6g} m/s² at 1 g "
-        f"({100 * ap.accel_error_bound / 9.80665:.4g} % of g), any direction.",
+        f"# {accel_error_text(ap)}",
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
-    params: list[tuple[str, float]] = []
-    params += [(f"CAL_MAG0_{a}OFF", ap.mag_bias[i]) for i, a in enumerate("XYZ")]
-    params += [(f"CAL_MAG0_{a}SCALE", S[i, i]) for i, a in enumerate("XYZ")]
-    params += [
-        (f"CAL_MAG0_{a}ODIAG", S[r, c])
-        for a, (r, c) in zip("XYZ", ((0, 1), (0, 2), (1, 2)), strict=True)
-    ]
-    params += [(f"CAL_ACC0_{a}OFF", ap.accel_bias[i]) for i, a in enumerate("XYZ")]
-    params += [(f"CAL_ACC0_{a}SCALE", ap.accel_scale[i]) for i, a in enumerate("XYZ")]
+    names = (
+        "CAL_MAG0_{}OFF",
+        "CAL_MAG0_{}SCALE",
+        "CAL_MAG0_{}ODIAG",
+        "CAL_ACC0_{}OFF",
+        "CAL_ACC0_{}SCALE",
+    )
+    params = parameters(ap, ap.mag_bias, names)
     lines += [f"1\t1\t{name}\t{exact(value)}\t{_REAL32}" for name, value in params]
     return "\n".join(lines) + "\n"
