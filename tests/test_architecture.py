@@ -30,6 +30,7 @@ RANK = {
     "geometry": 1,
     "metrics": 1,
     "serialize": 1.5,
+    "reference": 1.2,  # the Earth's field where the user is (World Magnetic Model)
     "comparison": 1.8,  # two calibrations side by side (called by the calibration)
     "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)
     "calibration": 2,
@@ -44,6 +45,7 @@ RANK = {
     "store": 6.5,  # calibrations over time: a folder by device and date
     "pipeline": 7,
     "output": 7,
+    "batch": 7.3,  # many logs at once: manifest, executors (processes, Dask), the summary
     "capture": 7.5,  # live streams: sources, the recorder, the session, the view
     "cli": 8,
     "__init__": 9,

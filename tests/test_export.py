@@ -179,7 +179,7 @@ def test_c_header_compiles_for_any_float32_calibration(gains, biases, tmp_path):
         gains[0] * np.eye(3), np.full(3, biases[0]), gains[1] * np.eye(3), np.full(3, biases[1])
     )
     text = export(cal, "c-header")
-    arrays = re.findall(r"FIELDCAL_\w+(?:\[3\])+ = \{(.*?)\};", text, re.S)
+    arrays = re.findall(r"FIELDCAL_\w+(?:MATRIX|BIAS)(?:\[3\])+ = \{(.*?)\};", text, re.S)
     literals = [v.strip(" {}\n") for a in arrays for v in a.split(",")]
     assert len(literals) == 24 and all(re.fullmatch(_C_FLOAT, v) for v in literals), literals
     # readings one field unit from the bias along each axis come out as (1, 2, 3)
@@ -257,3 +257,83 @@ def test_extreme_finite_values_read_back_exactly():
     with pytest.raises(ValueError, match=r"c-header.*matlab, magneto, json") as info:
         export(big, "c-header")
     assert "np.float64" not in str(info.value)  # the number as the user knows it
+
+
+def _c_array(text, name):
+    found = re.search(rf"{name}(?:\[3\])+ = \{{(.*?)\}};", text, re.S)
+    values = _numbers(found.group(1))
+    return values.reshape(3, 3) if values.size == 9 else values
+
+
+def test_c_header_filter_numbers_match_the_data():
+    """The header's Kalman-filter numbers against an independent computation: NOISE_COV is the
+    scatter of the corrected samples within each pose (pooled; Wishart error ~ 1/√(n) ≈ 1 %),
+    the NED fields are what the corrected readings average to at rest (through the simulated
+    rotations), and the declination is the reference's."""
+    session = fieldcal.simulate("paper", seed=5)
+    cal = fieldcal.calibrate(
+        session.accel, session.mag, gravity=9.80665, location=(52.0, 4.37), date="2026-06-01",
+        field_strength="wmm",
+    )  # fmt: skip
+    text = export(cal, "c-header")
+    for sensor, samples in (("accel", session.accel), ("mag", session.mag)):
+        corrected = [cal.sensor(sensor).correct(p) for p in samples]
+        pooled = sum((c - c.mean(axis=0)).T @ (c - c.mean(axis=0)) for c in corrected)
+        dof = sum(len(c) - 1 for c in corrected)
+        cov = _c_array(text, f"FIELDCAL_{sensor.upper()}_NOISE_COV")
+        np.testing.assert_allclose(cov, pooled / dof, rtol=0.05, atol=0.05 * np.abs(cov).max())
+        residual = _c_array(text, f"FIELDCAL_{sensor.upper()}_RESIDUAL_COV")
+        M = np.linalg.inv(cal.sensor(sensor).gain)
+        q = cal.sensor(sensor).pose_noise_std
+        np.testing.assert_allclose(residual, q**2 * M @ M.T, rtol=1e-6, atol=1e-12)
+    ned = {
+        "accel": _c_array(text, "FIELDCAL_GRAVITY_NED"),
+        "mag": _c_array(text, "FIELDCAL_MAGNETIC_NED"),
+    }
+    assert ned["accel"] == pytest.approx([0.0, 0.0, -9.80665], abs=1e-5)
+    assert np.linalg.norm(ned["mag"]) == pytest.approx(
+        cal.field_reference.intensity / 1000, rel=1e-6
+    )
+    # the fields' angle is the one between the corrected readings at rest: sin(dip) = −â·m̂
+    a = np.array([cal.correct_accel(p.mean(axis=0)) for p in session.accel])
+    m = np.array([cal.correct_mag(p.mean(axis=0)) for p in session.mag])
+    cos = np.einsum("ij,ij->i", a, m) / np.linalg.norm(a, axis=1) / np.linalg.norm(m, axis=1)
+    dip = np.degrees(np.arcsin(ned["mag"][2] / np.linalg.norm(ned["mag"])))
+    assert np.degrees(np.arcsin(-cos)).mean() == pytest.approx(dip, abs=0.3)
+    declination = float(re.search(r"#define FIELDCAL_DECLINATION_DEG (\S+)f", text).group(1))
+    assert declination == pytest.approx(cal.field_reference.declination_deg, rel=1e-6)
+
+
+@needs_cc
+def test_kalman_page_program_runs(tmp_path):
+    """docs/kalman-c.md's program, compiled as the page says, on raw pose means: its corrected
+    vectors are cal.correct_* to float precision, its tilt and heading those the same formulas
+    give in float64 on fieldcal's output, plus the declination."""
+    page = (DOCS / "kalman-c.md").read_text(encoding="utf-8")
+    (program,) = re.findall(r"```c\n(.*?)```", page, re.S)
+    session = fieldcal.simulate("paper", seed=6)
+    cal = fieldcal.calibrate(session.accel, session.mag, location=(52.0, 4.37), date="2026-06-01")
+    (tmp_path / "fieldcal_cal.h").write_text(export(cal, "c-header"))
+    (tmp_path / "heading.c").write_text(program)
+    exe = tmp_path / "heading"
+    flags = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror"]
+    subprocess.run(["cc", *flags, "-o", str(exe), str(tmp_path / "heading.c"), "-lm"], check=True)
+    raw_a = np.array([p.mean(axis=0) for p in session.accel])
+    raw_m = np.array([p.mean(axis=0) for p in session.mag])
+    rows = "ax,ay,az,mx,my,mz\n" + "".join(
+        ",".join(f"{v:.9g}" for v in (*a, *m)) + "\n" for a, m in zip(raw_a, raw_m, strict=True)
+    )
+    out = subprocess.run([str(exe)], input=rows, capture_output=True, text=True, check=True)
+    got = np.array([line.split() for line in out.stdout.splitlines()], dtype=float)
+    a, m = cal.correct_accel(raw_a), cal.correct_mag(raw_m)
+    np.testing.assert_allclose(got[:, 0:3], a, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(got[:, 3:6], m, rtol=1e-5, atol=1e-5)
+    down = -a / np.linalg.norm(a, axis=1, keepdims=True)
+    east = np.cross(down, m)
+    east /= np.linalg.norm(east, axis=1, keepdims=True)
+    north = np.cross(east, down)
+    tilt = np.degrees(np.arccos(np.abs(down[:, 2])))
+    heading = np.degrees(np.arctan2(east[:, 0], north[:, 0])) + cal.field_reference.declination_deg
+    np.testing.assert_allclose(got[:, 6], tilt, atol=1e-2)
+    wrapped = (got[:, 7] - heading + 180.0) % 360.0 - 180.0
+    np.testing.assert_allclose(wrapped, 0.0, atol=1e-2)

@@ -33,6 +33,7 @@ def _fast(path: Path, decimal: str | None = None) -> Table:
 
 def _same(a: Table, b: Table) -> None:
     assert (a.path, a.names, a.notes, a.decimal) == (b.path, b.names, b.notes, b.decimal)
+    assert a.metadata == b.metadata
     for name in a.names:
         x, y = a.columns[name], b.columns[name]
         assert x.dtype.kind == y.dtype.kind, name
@@ -401,3 +402,47 @@ def test_apply_keeps_a_preamble_a_hash_header_and_decimal_commas(tmp_path):
     table = read_table(tmp_path / "out.csv")  # and it reads back
     assert table.names[-3:] == ["ax_cal", "ay_cal", "az_cal"]
     assert table.columns["ax_cal"].tolist() == [2.5, 1.0]
+
+
+# ----------------------------------------------------------------------------- metadata
+_BODY = "t,ax,ay,az\n0,1,2,3\n1,4,5,6\n"
+
+
+@pytest.mark.parametrize(
+    "preamble, expected",
+    [
+        ("# device: IMU-0042\n# Firmware Version = 1.2\n", {"device": "IMU-0042",
+         "firmware_version": "1.2"}),
+        ("Serial Number,SN-77\nLogger v2\n", {"serial_number": "SN-77"}),
+        ("# board_id: A 1\n# device: first\n# device: second\n",
+         {"board_id": "A 1", "device": "first"}),
+        ("# x,y,z\n", {}),  # a three-field line is not metadata
+        ("", {}),
+    ],
+)  # fmt: skip
+def test_text_metadata_above_the_header(tmp_path, preamble, expected):
+    path = _write(tmp_path / "log.csv", preamble + _BODY)
+    fast, careful = _fast(path), read_careful(path)
+    _same(fast, careful)
+    assert fast.metadata == expected
+    assert fast.names == ["t", "ax", "ay", "az"]
+
+
+def test_log_device_from_each_format(tmp_path):
+    from fieldcal.logs import load_log
+
+    rows = "t,ax,ay,az,mx,my,mz\n" + "".join(f"{i},{i % 3},1,2,{i % 5},4,5\n" for i in range(10))
+    csv = _write(tmp_path / "a.csv", "# Serial Number: SN-1\n# device: IMU-7\n" + rows)
+    assert load_log(str(csv)).device == "IMU-7"  # "device" outranks "serial_number"
+    data = np.loadtxt(csv, delimiter=",", skiprows=3)
+    np.savez(tmp_path / "b.npz", t=data[:, 0], accel=data[:, 1:4], mag=data[:, 4:7], sn="SN-9")
+    assert load_log(str(tmp_path / "b.npz")).device == "SN-9"
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    names = ["t", "ax", "ay", "az", "mx", "my", "mz"]
+    table = pa.table({n: data[:, j] for j, n in enumerate(names)})
+    table = table.replace_schema_metadata({b"Device ID": b"PQ-3"})
+    pq.write_table(table, tmp_path / "c.parquet")
+    assert load_log(str(tmp_path / "c.parquet")).device == "PQ-3"
+    plain = _write(tmp_path / "d.csv", rows)
+    assert load_log(str(plain)).device is None

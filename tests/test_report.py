@@ -153,3 +153,30 @@ def test_report_is_written_atomically_and_never_over_its_log(made, tmp_path):
     with pytest.raises(InputError, match="is the input log"):
         write_report(made["cal"], made["log"], log_path)
     assert log_path.read_bytes() == before
+
+
+def test_plot_returns_the_report_figures(made):
+    """``cal.plot(log)`` gives the report's figures themselves: the same names as the PNGs the
+    report wrote, each the same picture (equal PNG bytes at the report's resolution); without
+    the log, the figures the calibration alone holds the data for."""
+    import io
+
+    from matplotlib.figure import Figure
+
+    cal, folder = made["cal"], made["folder"]
+    figures = cal.plot(made["log"])
+    written = sorted(p.stem for p in (folder / "png").glob("*.png"))
+    assert sorted(figures) == written and set(figures) <= set(FIGURES)
+    assert all(isinstance(f, Figure) for f in figures.values())
+    buffer = io.BytesIO()
+    figures["residuals"].savefig(buffer, format="png", dpi=90)
+    assert buffer.getvalue() == (folder / "png" / "residuals.png").read_bytes()
+    # a path is read with the columns the calibration recorded
+    assert sorted(cal.plot(folder / "session.csv")) == written
+    alone = cal.plot()
+    assert sorted(alone) == ["gyro", "residuals"]
+    # drawn from the calibration alone, they are the report's pictures all the same
+    for name in alone:
+        buffer = io.BytesIO()
+        alone[name].savefig(buffer, format="png", dpi=90)
+        assert buffer.getvalue() == (folder / "png" / f"{name}.png").read_bytes(), name

@@ -77,3 +77,22 @@ def test_store_add_needs_a_device(cal, tmp_path):
     assert ok.exit_code == 0 and np.all(
         fieldcal.Store(tmp_path / "s").latest("b1").mag.gain == cal.mag.gain
     )
+
+
+def test_device_id_from_the_log(tmp_path):
+    """A log that names its device (``# device: ID`` above the header) needs no --device:
+    calibrate records it and store add files the calibration under it."""
+    log = tmp_path / "log.csv"
+    assert CliRunner().invoke(cli, ["simulate", "--seed", "3", "-o", str(log)]).exit_code == 0
+    log.write_text("# device: line4-unit17\n" + log.read_text())
+    out = tmp_path / "cal.json"
+    result = CliRunner().invoke(cli, ["calibrate", str(log), "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    cal = fieldcal.Calibration.from_json(out.read_text())
+    assert cal.options["device"] == "line4-unit17"
+    store = tmp_path / "store"
+    added = CliRunner().invoke(cli, ["store", "add", str(out), "--store", str(store)])
+    assert added.exit_code == 0, added.output
+    (device,) = fieldcal.Store(store).devices()
+    assert fieldcal.Store(store).latest(device) == cal
+    assert fieldcal.Store(store).add(cal).parent.name == device  # the library too

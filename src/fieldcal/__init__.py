@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from .logs import Log
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
+    from .reference import expected_field
     from .store import Store
     from .trust.plan import PlannedPose, Targets, plan_poses
 
@@ -59,6 +60,7 @@ __all__ = [
     "align",
     "calibrate",
     "calibrate_log",
+    "expected_field",
     "fit_ellipsoid",
     "metrics",
     "plan_poses",
@@ -81,6 +83,7 @@ _LAZY = {
     "Targets": "fieldcal.trust.plan",
     "plan_poses": "fieldcal.trust.plan",
     "Store": "fieldcal.store",
+    "expected_field": "fieldcal.reference",
 }
 
 

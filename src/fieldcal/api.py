@@ -7,10 +7,11 @@ This module names no method: :mod:`fieldcal.methods` validates and dispatches.
 from __future__ import annotations
 
 import dataclasses
+import datetime as _dt
 import functools
 import importlib
 import numbers
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeAlias
 
@@ -18,8 +19,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .calibration import Calibration
+from .errors import InputError
 from .methods import Method
 from .methods import get as get_method
+from .reference import DIP_ALLOWANCE_DEG, FieldReference, expected_field
 from .stats.noise import noise_covariance, per_sensor, pose_noise_value
 from .stats.poses import PoseStats, Samples, brief, summarize_scaled
 from .stats.scaling import normalise
@@ -43,6 +46,37 @@ def _blas() -> ThreadpoolController:
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
+
+
+def _reference(location: object, date: object, allowance: object) -> FieldReference | None:
+    if location is None:
+        if date is not None:
+            raise InputError("a date was given without a location; give --location LAT,LON too")
+        return None
+    if (
+        isinstance(allowance, bool)
+        or not isinstance(allowance, (int, float, np.floating, np.integer))
+        or not 0 <= float(allowance) < 90
+    ):
+        raise InputError(f"dip_allowance_deg must be degrees from 0 to 90, got {brief(allowance)}")
+    return expected_field(location, date)  # type: ignore[arg-type]  # validated there
+
+
+def _field_strength(value: object, reference: FieldReference | None) -> float | None:
+    """A number, or ``"wmm"``/``"wmm:uT"``/``"wmm:nT"``: the model's intensity at the site."""
+    if not isinstance(value, str):
+        return _magnitude(value, "field_strength")
+    unit = {"wmm": "uT", "wmm:ut": "uT", "wmm:µt": "uT", "wmm:nt": "nT"}.get(value.lower())
+    if unit is None:
+        raise InputError(
+            f"field_strength {value[:40]!r} is neither a number nor wmm, wmm:uT or wmm:nT"
+        )
+    if reference is None:
+        raise InputError(
+            "field strength 'wmm' takes the World Magnetic Model's intensity where the log was "
+            "recorded: give --location LAT,LON too"
+        )
+    return reference.intensity_in(unit)
 
 
 def _trust() -> ModuleType:
@@ -119,6 +153,9 @@ def calibrate(
     trim: bool | None = None,
     body_frame: str = "accel",
     mag_mirrored: bool = False,
+    location: str | Sequence[float] | None = None,
+    date: str | _dt.date | None = None,
+    dip_allowance_deg: float = DIP_ALLOWANCE_DEG,
     on_progress: Callable[[str], None] | None = None,
     **options: object,
 ) -> Calibration:
@@ -136,7 +173,8 @@ def calibrate(
         ``"greedy"`` (the seed paper's algorithm), ``"ellipsoid"`` (CK-Explorer).
     gravity, field_strength : float, optional
         Magnitudes of the reference fields; the gains come out in raw units per unit of these.
-        Default 1 (unit fields).
+        Default 1 (unit fields). ``field_strength="wmm"`` (or ``"wmm:uT"``, ``"wmm:nT"``)
+        takes the World Magnetic Model's total intensity at ``location``, in µT (or nT).
     noise : float, array, or dict, optional
         Noise of one raw sample, used instead of the within-pose scatter (Eq. 7): a standard
         deviation (scalar or per axis), a 3x3 covariance, or ``{"accel": ..., "mag": ...}``.
@@ -160,7 +198,20 @@ def calibrate(
         Whether the magnetometer's axes, as given, are mirrored relative to the
         accelerometer's (a left-handed triad, e.g. the LSM9DS1's). Static poses cannot tell
         this from a field in the opposite magnetic hemisphere (the dip's sign), so it is a
-        prior: by default the magnetometer's gain comes out with a positive determinant.
+        prior: by default the magnetometer's gain comes out with a positive determinant. With a
+        ``location`` the model's dip decides instead (the verdict warns when that contradicts
+        what is stated here); ``cal.options["mag_handedness"]`` says which decided.
+    location : str or sequence of float, optional
+        Where the data were recorded, ``"LAT,LON[,ALT_M]"`` or ``(lat, lon[, alt_m])`` in
+        decimal degrees and metres: the World Magnetic Model's field there
+        (:func:`fieldcal.expected_field`) becomes ``cal.field_reference`` (JSON
+        ``reference``), decides the handedness and is compared with the fitted dip.
+    date : str or datetime.date, optional
+        When (``"YYYY-MM-DD"``) for the model; default today. Needs ``location``.
+    dip_allowance_deg : float
+        The local anomaly allowed beyond the uncertainties before the verdict warns that the
+        fitted dip differs from the model's (default :data:`fieldcal.reference.
+        DIP_ALLOWANCE_DEG`, 2°).
     on_progress : callable, optional
         Called with one line of text at each step of the robust fit (for progress displays).
     **options
@@ -188,7 +239,8 @@ def calibrate(
         raise ValueError(f"trim must be True or False, got {brief(trim)}")
     alpha = _probability(false_alarm, "false_alarm")
     g = _magnitude(gravity, "gravity")
-    h = _magnitude(field_strength, "field_strength")
+    reference = _reference(location, date, dip_allowance_deg)
+    h = _field_strength(field_strength, reference)
     spec.check_options(options)
     fixed = {s: pose_noise_value(v, s) for s, v in per_sensor(pose_noise, "pose_noise").items()}
     user_noise = _user_noise(noise)
@@ -209,11 +261,22 @@ def calibrate(
             cal, scales = _fit(
                 spec, accel, mag, options, user_noise, fixed, body_frame,
                 trim=bool(trim), robust=bool(robust), alpha=alpha,
-                mag_mirrored=bool(mag_mirrored), on_progress=on_progress,
+                mag_mirrored=bool(mag_mirrored), reference=reference,
+                dip_allowance_deg=dip_allowance_deg, on_progress=on_progress,
             )  # fmt: skip
+            # the handedness: the fit's twins are equal but for it (the reference's when it
+            # can decide, as the trust path did; the user's otherwise)
+            decided = None
+            if reference is not None:
+                decided = _trust().reference_mirrored(cal, reference, dip_allowance_deg)
+            mirrored = bool(mag_mirrored) if decided is None else decided
+            provenance["mag_mirrored"] = mirrored
+            provenance["mag_handedness"] = "stated" if decided is None else "reference"
             # back to the user's units with the provenance (one new Calibration, not two)
             cal = cal.with_raw_scale(scales, options=provenance)
-            cal = cal.with_mag_handedness(bool(mag_mirrored))
+            cal = cal.with_mag_handedness(mirrored)
+            if reference is not None and cal.field_reference is None:  # the ellipsoid path
+                cal = dataclasses.replace(cal, field_reference=reference)
             if g is not None or h is not None:
                 cal = cal.with_field_magnitudes(g, h)
     except np.linalg.LinAlgError as exc:
@@ -245,6 +308,8 @@ def _fit(
     robust: bool,
     alpha: float,
     mag_mirrored: bool,
+    reference: FieldReference | None,
+    dip_allowance_deg: float,
     on_progress: Callable[[str], None] | None,
 ) -> tuple[Calibration, dict[str, float]]:
     """The method through the shared trust path, on readings divided by an exact power of two
@@ -296,6 +361,8 @@ def _fit(
         robust=robust,
         alpha=alpha,
         mag_mirrored=mag_mirrored,
+        reference=reference,
+        dip_allowance_deg=dip_allowance_deg,
         on_progress=on_progress,
     )
     return cal, scales

@@ -20,10 +20,11 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import functools
+import importlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, cast
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,7 +41,11 @@ from .geometry.frames import (
     twin_flip,
 )
 from .notebook import calibration_html
+from .reference import FieldReference
 from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "GYRO",
@@ -354,6 +359,11 @@ class Calibration(ArrayDataclass):
     gyro_segments : tuple of dict
         One entry per motion segment the gyroscope was fitted on (``start``, ``stop`` rows,
         ``seconds``, ``angle_deg`` turned, ``residual_deg`` after calibration).
+    field_reference : FieldReference or None
+        JSON key ``reference``. The field the World Magnetic Model expects where and when the
+        log was recorded (``location=``, :func:`fieldcal.expected_field`); it decided the
+        magnetometer's handedness and the verdict compares the fitted dip with it. ``None``
+        without one.
     units : dict
         Units of raw and calibrated readings, for humans and exports.
     version, created : str
@@ -379,6 +389,9 @@ class Calibration(ArrayDataclass):
     accuracy: Accuracy | None = None
     gyro: SensorCalibration | None = None
     gyro_segments: tuple[dict[str, Any], ...] = field(default=(), repr=False)
+    field_reference: FieldReference | None = field(
+        default=None, repr=False, metadata={"key": "reference"}
+    )
     units: dict[str, str] = field(default_factory=dict, repr=False)
     version: str = field(
         default="", compare=False, repr=False, metadata={"key": "fieldcal_version"}
@@ -557,6 +570,34 @@ class Calibration(ArrayDataclass):
         """The verdict, the key numbers with ± and units, rejected poses and a coverage
         picture, for notebooks (:mod:`fieldcal.notebook`)."""
         return calibration_html(self)
+
+    def plot(self, log: object = None) -> dict[str, Figure]:
+        """The report's figures as matplotlib Figures, by name.
+
+        Parameters
+        ----------
+        log : Log, str or path, optional
+            The log the calibration was made from (a path is read with the columns the
+            calibration recorded): with it every figure of ``fieldcal report`` (``timeline``,
+            ``residuals``, ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``,
+            ``gyro``); without it those the calibration alone holds the data for
+            (``residuals``, ``gyro``).
+
+        Returns
+        -------
+        dict of str to matplotlib.figure.Figure
+            Each figure is unattached to pyplot: show it in a notebook by leaving it as a
+            cell's value, or ``fig.savefig("name.png")``.
+
+        Notes
+        -----
+        Needs matplotlib (``pip install 'fieldcal[plot]'``). The figures are drawn by
+        :func:`fieldcal.output.report.report_figures`, reached through importlib: the result
+        class stays below the output room it would otherwise import.
+        """
+        report = importlib.import_module("fieldcal.output.report")
+        figures: dict[str, Figure] = report.report_figures(self, log)
+        return figures
 
     def correct_gyro(self, raw: ArrayLike) -> Array:
         """Raw gyroscope readings (..., 3) -> body-frame angular rate in rad/s,
@@ -829,6 +870,10 @@ def _default_units(cal: Calibration) -> dict[str, str]:
     units = {"accel_raw": "as given", "mag_raw": "as given"}
     units["accel_calibrated"] = "|g| = 1" if g is None or g == 1.0 else f"|g| = {g:g}"
     units["mag_calibrated"] = "|h| = 1" if h is None or h == 1.0 else f"|h| = {h:g}"
+    ref = cal.field_reference
+    for unit in ("uT", "nT"):
+        if ref is not None and h is not None and np.isclose(h, ref.intensity_in(unit), rtol=1e-9):
+            units["mag_calibrated"] += f" {unit} ({ref.model} at {ref.place}, {ref.date})"
     if cal.gyro is not None:
         units["gyro_raw"] = "as given"
         units["gyro_calibrated"] = "rad/s"

@@ -115,7 +115,10 @@ class _CalibrateOptions(_LogOptions, total=False):
 
     method: str
     gravity: float | None
-    field_strength: float | None
+    field_strength: float | str | None
+    location: str | None
+    date: str | None
+    dip_allowance: float | None
     noise: str | None
     no_robust: bool
     mag_axes: str | None
@@ -327,6 +330,30 @@ class _Number(_NumberBase):
 
 #: Positive magnitudes (fields, thresholds, noise): their squares stay finite and normal.
 _MAGNITUDE = _Number(1 / _BIG, _BIG, low_open=False)
+
+
+class _FieldStrength(_Number):
+    """``--field-strength``: a magnitude, or ``wmm`` (``wmm:uT``, ``wmm:nT``) for the World
+    Magnetic Model's intensity at ``--location``."""
+
+    name = "number|wmm"
+
+    def convert(  # type: ignore[override]  # a number or the model's keyword
+        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+    ) -> float | str:
+        text = str(value).strip()
+        if text.lower() in ("wmm", "wmm:ut", "wmm:nt"):
+            return text
+        if not isinstance(value, float) and text[:1].isalpha():
+            self.fail(
+                f"{value!r} is neither a number nor wmm (wmm:uT, wmm:nT: the World Magnetic "
+                "Model's intensity at --location)",
+                param,
+                ctx,
+            )
+        return super().convert(value, param, ctx)
+
+
 #: Sample rates (Hz) and durations (seconds, or samples without a rate).
 _POSITIVE = _Number(0.0, 1e12)
 _NON_NEGATIVE = _Number(0.0, 1e12, low_open=False)
@@ -535,8 +562,27 @@ def _fit_options(f: _Command) -> _Command:
         ),
         click.option(
             "--field-strength",
-            type=_MAGNITUDE,
-            help="|h| for calibrated mag units (e.g. 48.5).",
+            type=_FieldStrength(1 / _BIG, _BIG, low_open=False),
+            help="|h| for calibrated mag units (e.g. 48.5), or wmm: the World Magnetic Model's "
+            "intensity at --location in µT (wmm:nT for nT).",
+        ),
+        click.option(
+            "--location",
+            metavar="LAT,LON[,ALT_M]",
+            help="Where the log was recorded (decimal degrees, metres above the WGS 84 "
+            "ellipsoid): the World Magnetic Model's dip, intensity and declination there are "
+            "the reference; its dip decides the magnetometer's handedness and is checked.",
+        ),
+        click.option(
+            "--date",
+            metavar="YYYY-MM-DD",
+            help="When the log was recorded, for --location (default: today).",
+        ),
+        click.option(
+            "--dip-allowance",
+            type=_Number(0.0, 89.0, low_open=False),
+            help="Degrees of dip allowed for a local anomaly beyond the uncertainties before "
+            "the verdict warns (default 2).",
         ),
         click.option(
             "--noise",
@@ -599,6 +645,22 @@ def _load(log: str, cols: _LogOptions, progress: _Progress = None) -> Log:
     return loaded
 
 
+def _check_reference(opts: _ParsedOptions) -> None:
+    """``--location``, ``--date`` and ``--field-strength wmm`` checked before the slow part (the
+    library checks them again, as it must for its own callers)."""
+    location, date = opts.get("location"), opts.get("date")
+    if location is not None:
+        _lazy(".reference").expected_field(location, date)
+    elif date is not None:
+        raise InputError("--date was given without --location; give --location LAT,LON too")
+    strength = opts.get("field_strength")
+    if isinstance(strength, str) and location is None:
+        raise InputError(
+            f"--field-strength {strength} takes the World Magnetic Model's intensity where the "
+            "log was recorded: give --location LAT,LON too"
+        )
+
+
 def _fit_choices(opts: _ParsedOptions) -> dict[str, Any]:
     """The options of :func:`fieldcal.pipeline.run_log` that shape the fit (not the
     detection), from the ``_fit_options``; absent ones take the library's defaults (the
@@ -611,6 +673,10 @@ def _fit_choices(opts: _ParsedOptions) -> dict[str, Any]:
     if opts.get("no_robust"):
         # trimming bumps inside a pose is part of the robust fit: off together
         choices.update(robust=False, trim=False)
+    if opts.get("location") is not None or opts.get("date") is not None:
+        choices.update(location=opts.get("location"), date=opts.get("date"))
+    if opts.get("dip_allowance") is not None:
+        choices["dip_allowance_deg"] = opts.get("dip_allowance")
     return {
         **choices,
         "gravity": opts.get("gravity"),
@@ -701,6 +767,7 @@ def calibrate(
     # the options given as text are parsed before the slow part
     options: _ParsedOptions = {**opts, "pose_noise": _parse_pose_noise(pose_noise)}
     _parse_noise(opts.get("noise"))
+    _check_reference(options)
     with _progress(quiet) as progress:
         if progress is not None:
             progress(f"reading {log}")
@@ -1050,9 +1117,10 @@ def capture(
     source_name = (
         port if port is not None else ("standard input" if from_path == "-" else from_path)
     )
+    options = cast(_ParsedOptions, {**opts, "pose_noise": _parse_pose_noise(pose_noise)})
+    _check_reference(options)
     inputs = {} if from_path in (None, "-") else {"log": str(from_path)}
     folder = _capture_folder(out_dir, force, inputs)
-    options = cast(_ParsedOptions, {**opts, "pose_noise": _parse_pose_noise(pose_noise)})
     session_module = _lazy(".capture.session")
     names = [name.strip() for name in columns.split(",")] if columns else None
     settings = session_module.CaptureOptions(

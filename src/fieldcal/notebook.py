@@ -91,6 +91,12 @@ def calibration_html(cal: Any) -> str:
     facts = []
     if cal.dip_deg is not None:
         facts.append(f"dip {_pm(cal.dip_deg, cal.dip_std_deg)}° (positive below the horizon)")
+    ref = cal.field_reference
+    if ref is not None:
+        facts.append(
+            f"{ref.model} at {ref.place} on {ref.date}: dip {_pm(ref.dip_deg, ref.dip_std_deg)}°, "
+            f"{ref.intensity / 1000:.2f} µT, declination {ref.declination_deg:+.2f}°"
+        )
     if cal.misalignment_deg is not None:
         facts.append(f"misalignment {_pm(cal.misalignment_deg, cal.misalignment_std_deg)}°")
     acc = cal.accuracy

@@ -256,6 +256,8 @@ def run_log(
             row["rejected"] = f"{dropped[i].sensor}: {dropped[i].reason}"
         rows.append(row)
     provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    if log.device is not None:  # the log names its device: fieldcal store add needs no --device
+        provenance["device"] = log.device
     if found.rate is not None:  # the sample rate: noise densities (Kalibr) need it
         provenance["rate"] = float(found.rate)
     cal = dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})

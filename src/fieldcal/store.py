@@ -84,10 +84,17 @@ class Store:
         if self.root.exists() and not self.root.is_dir():
             raise InputError(f"{self.root}: is not a folder; give the store's folder")
 
-    def add(self, cal: Calibration, *, device: str) -> Path:
-        """Store ``cal`` for ``device``; returns the file written (never replacing one)."""
+    def add(self, cal: Calibration, *, device: str | None = None) -> Path:
+        """Store ``cal`` for ``device`` (default: the device its log named,
+        ``cal.options["device"]``); returns the file written (never replacing one)."""
         if not isinstance(cal, Calibration):
             raise InputError(f"add takes a fieldcal.Calibration, got {type(cal).__name__}")
+        device = device or cal.options.get("device")
+        if not device:
+            raise InputError(
+                "no device id: the calibration's log did not name one (a '# device: ID' line "
+                "above its header); give device=ID (fieldcal store add --device ID)"
+            )
         folder = self.root / _device(device)
         folder.mkdir(parents=True, exist_ok=True)
         stem = _when(cal.created or _dt.datetime.now(_dt.UTC)).strftime(_STAMP)

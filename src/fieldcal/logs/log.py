@@ -63,6 +63,10 @@ _ROLE_NAMES = {
 }
 
 
+#: Metadata keys naming the device, first match wins (lower case, spaces and dashes as ``_``).
+DEVICE_KEYS = ("device", "device_id", "serial", "serial_number", "sn", "board", "board_id", "uid")
+
+
 @dataclass
 class Log:
     """A log's sensor data, ready for still detection and calibration.
@@ -86,10 +90,20 @@ class Log:
     dropped: int = 0
     notes: list[str] = field(default_factory=list)
     segment: NDArray[np.int64] | None = None
+    metadata: dict[str, str] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
         return len(self.index)
+
+    @property
+    def device(self) -> str | None:
+        """The device id the log names in its metadata (:data:`DEVICE_KEYS`), else ``None``."""
+        for key in DEVICE_KEYS:
+            value = self.metadata.get(key, "").strip()
+            if value:
+                return value
+        return None
 
     @property
     def rate(self) -> float | None:
@@ -487,4 +501,5 @@ def load_log(
         dropped=n_bad,
         notes=notes,
         segment=segment,
+        metadata=dict(getattr(table, "metadata", {})),
     )

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from .text import LONGEST_FIELD, Table, _check_header, read_text, to_float
+from .text import LONGEST_FIELD, Table, _check_header, metadata_key, read_text, to_float
 
 __all__ = [
     "LONGEST_FIELD",
@@ -60,8 +60,11 @@ def npz_table(path: str | Path, arrays: dict[str, NDArray[np.generic]]) -> Table
     out (named in the error when nothing is left); every column as long as the others."""
     columns: dict[str, NDArray[np.generic]] = {}
     skipped: list[str] = []
+    metadata: dict[str, str] = {}
     for key, array in arrays.items():
-        if array.ndim == 2 and array.shape[1] == 3:
+        if array.ndim == 0:  # np.savez(..., device="IMU-0042"): a scalar describes the log
+            metadata.setdefault(metadata_key(key), str(array.item())[:200])
+        elif array.ndim == 2 and array.shape[1] == 3:
             for axis, column in zip("xyz", array.T, strict=True):
                 columns[f"{key}_{axis}"] = column
         elif array.ndim == 1:
@@ -80,7 +83,7 @@ def npz_table(path: str | Path, arrays: dict[str, NDArray[np.generic]]) -> Table
             f"{path}: arrays of different lengths ({shown} rows); save one row per sample in "
             "every array"
         )
-    return Table(str(path), list(columns), columns)
+    return Table(str(path), list(columns), columns, metadata=metadata)
 
 
 def _read_parquet(path: Path) -> Table:
@@ -108,7 +111,19 @@ def _read_parquet(path: Path) -> Table:
     for name, values in columns.items():
         if values.dtype.kind == "O":  # text, or lists and nulls: kept as their text
             columns[name] = np.array([str(v) for v in values], dtype=str)
-    return Table(str(path), names, columns)
+    return Table(str(path), names, columns, metadata=_parquet_metadata(table.schema.metadata))
+
+
+def _parquet_metadata(raw: dict[bytes, bytes] | None) -> dict[str, str]:
+    """A Parquet file's key-value metadata as text; the schemas pandas and Arrow store there
+    are not about the log."""
+    out: dict[str, str] = {}
+    for key, value in (raw or {}).items():
+        name = key.decode("utf-8", "replace")
+        if name in ("pandas", "ARROW:schema"):
+            continue
+        out.setdefault(metadata_key(name), value.decode("utf-8", "replace").strip()[:200])
+    return out
 
 
 #: suffix -> reader; any other suffix is read as delimited text (CSV, TSV, blank-separated).

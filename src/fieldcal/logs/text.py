@@ -78,7 +78,9 @@ class Table:
 
     ``notes`` says what the reader did that the user may want to know (preamble lines skipped,
     decimal commas read as points); ``decimal`` is the decimal mark of the text file, used when
-    a text column is read as numbers.
+    a text column is read as numbers. ``metadata`` holds what the file says about itself
+    (``key: value`` lines above a text log's header, a Parquet file's key-value metadata, an
+    ``.npz`` archive's scalar arrays), keys as :func:`metadata_key` writes them.
     """
 
     path: str
@@ -86,6 +88,7 @@ class Table:
     columns: dict[str, NDArray[np.generic]]
     notes: list[str] = field(default_factory=list)
     decimal: str = "."
+    metadata: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -301,6 +304,31 @@ class Layout:
     delimiter: str | None
     decimal: str = "."
     notes: tuple[str, ...] = ()
+
+
+def metadata_key(name: str) -> str:
+    """A metadata key as fieldcal looks it up: lower case, runs of spaces, dashes and dots as
+    ``_`` (``"Serial Number"`` → ``"serial_number"``)."""
+    return re.sub(r"[\s.\-]+", "_", name.strip().lower()).strip("_")
+
+
+#: ``key: value``, ``key = value``, or a two-field ``key,value`` line (``#`` comments too).
+_META_LINE = re.compile(r"^[#\s]*([A-Za-z][\w .\-]{0,40}?)\s*(?::|=|,|;|\t)\s*(\S.*?)\s*$")
+
+
+def metadata_lines(lines: Sequence[str]) -> dict[str, str]:
+    """The ``key: value`` pairs in the lines above a text log's header (a logger's preamble or
+    ``#`` comments such as ``# device: IMU-0042``); the first of a repeated key wins and a line
+    of more than two comma-separated fields is not metadata."""
+    out: dict[str, str] = {}
+    for line in lines:
+        match = _META_LINE.match(line)
+        if match is None or line.count(",") > 1:
+            continue
+        key, value = metadata_key(match.group(1)), match.group(2).strip().strip("\"'")
+        if key and value:
+            out.setdefault(key, value[:200])
+    return out
 
 
 #: A number written with a decimal comma, and one written with a decimal point.
@@ -570,7 +598,8 @@ def read_careful(path: str | Path, *, decimal: str | None = None) -> Table:
         name: _column(cells, decimal)
         for name, cells in zip(header, zip(*body, strict=True), strict=True)
     }
-    return Table(str(path), header, columns, list(found.notes), decimal)
+    meta = metadata_lines(raw[: found.header_index])
+    return Table(str(path), header, columns, list(found.notes), decimal, meta)
 
 
 # ----------------------------------------------------------------------------- fast reader
@@ -777,7 +806,8 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
     out: dict[str, NDArray[np.generic]] = {}
     for j, name in enumerate(names):
         out[name] = values[numeric.index(j), :n] if kinds[j] else np.concatenate(texts[j])
-    return Table(str(path), names, out, list(found.notes), decimal)
+    meta = metadata_lines(head[: found.header_index])
+    return Table(str(path), names, out, list(found.notes), decimal, meta)
 
 
 def _block(

@@ -46,10 +46,11 @@ import base64
 import html
 import io as _io
 import math
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,14 +58,14 @@ from numpy.typing import NDArray
 from .._files import same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
-from ..logs import Log
+from ..logs import Log, load_log
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure as MplFigure
 
-__all__ = ["FIGURES", "write_report"]
+__all__ = ["FIGURES", "report_figures", "write_report"]
 
 Array = NDArray[np.float64]
 _Scalar = TypeVar("_Scalar", bound=np.generic)
@@ -99,15 +100,16 @@ class _Pose:
         return np.concatenate([np.arange(a, b) for a, b in self.spans])
 
 
-def _poses(cal: Calibration, log: Log) -> list[_Pose]:
-    """The poses of ``cal`` with their rows in ``log`` (from ``start``/``stop`` or ``pieces``)."""
-    last = int(log.index[-1]) + 1 if log.n else 0
+def _poses(cal: Calibration, log: Log | None) -> list[_Pose]:
+    """The poses of ``cal`` with their rows in ``log`` (from ``start``/``stop`` or ``pieces``);
+    without a log, the poses alone (no rows)."""
+    last = int(log.index[-1]) + 1 if log is not None and log.n else 0
     reasons = {r.index: f"{r.sensor}: {r.reason}" for r in cal.rejected}
     out = []
     for position, pose in enumerate(cal.poses):
         index = int(pose.get("index", position))
         spans: tuple[tuple[int, int], ...] = ()
-        if "start" in pose and "stop" in pose:
+        if log is not None and "start" in pose and "stop" in pose:
             if pose["stop"] > last:
                 raise InputError(
                     f"{log.path}: the calibration's pose {index} ends at row {pose['stop']} but "
@@ -648,6 +650,93 @@ _TITLES = {
 FIGURES = tuple(_TITLES)
 
 
+def report_figures(
+    cal: Calibration, log: Log | str | os.PathLike[str] | None = None
+) -> dict[str, MplFigure]:
+    """The report's figures as matplotlib Figures, by name (:data:`FIGURES`).
+
+    With the ``log`` the calibration was made from (a :class:`~fieldcal.logs.Log`, or its path,
+    read with the columns the calibration recorded), every figure of :func:`write_report`;
+    without it, those the calibration holds the data for: ``residuals`` (per pose, when the
+    calibration has them) and ``gyro`` (with a gyroscope). See :meth:`fieldcal.Calibration.plot`.
+    """
+    if log is not None and not isinstance(log, Log):
+        log = load_log(os.fspath(log), **_recorded_columns(cal))
+    return _figures(cal, log)[0]
+
+
+def _recorded_columns(cal: Calibration) -> dict[str, Any]:
+    """The reading options for the columns ``cal.options["columns"]`` names (role → names)."""
+    used = cal.options.get("columns") or {}
+    options: dict[str, Any] = {}
+    for role, names in used.items():
+        if role in ("accel", "mag", "gyro"):
+            options[f"{role}_cols"] = list(names)
+        elif role in ("time", "pose") and names:
+            options[f"{role}_col"] = names[0]
+    return options
+
+
+def _figures(cal: Calibration, log: Log | None) -> tuple[dict[str, MplFigure], list[_Pose]]:
+    """The figures and the poses they were drawn from."""
+    Figure = _figure_class()
+    poses = _poses(cal, log)
+    figures: dict[str, MplFigure] = {}
+    sensors = [s for s in SENSORS if getattr(cal, s) is not None]
+    if log is not None:
+        sensors = [s for s in sensors if getattr(log, s) is not None and log.n > 0]
+        if not sensors:
+            raise InputError(
+                f"{log.path}: none of the calibrated sensors' columns are in this log; pass "
+                "--accel-cols/--mag-cols"
+            )
+        figures["timeline"] = _timeline_figure(Figure, log, sensors, poses)
+    with_residuals = [s for s in sensors if any(p.residual[s] is not None for p in poses)]
+    if with_residuals:
+        figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)
+    if log is not None:
+        figures.update(_log_figures(Figure, cal, log, sensors, poses))
+    if cal.gyro is not None and cal.gyro_segments:
+        figures["gyro"] = _gyro_figure(Figure, cal)
+    return figures, poses
+
+
+def _log_figures(
+    Figure: type[MplFigure], cal: Calibration, log: Log, sensors: Sequence[str], poses: list[_Pose]
+) -> dict[str, MplFigure]:
+    """The figures of the corrected log: norms and dip, raw and calibrated spheres, coverage."""
+    figures: dict[str, MplFigure] = {}
+    located = [p for p in poses if p.spans]
+    fitted_rows = [p.rows for p in located if p.rejected is None]
+    still = np.concatenate(fitted_rows) if fitted_rows else np.arange(log.n)
+    rejected_rows = [p.rows for p in located if p.rejected is not None]
+    dropped = np.concatenate(rejected_rows) if rejected_rows else np.zeros(0, dtype=np.int64)
+    corrected = {s: cal.sensor(s).correct(getattr(log, s)) for s in sensors}
+    norms = {
+        s: (np.linalg.norm(c[still], axis=1), np.linalg.norm(c[dropped], axis=1))
+        for s, c in corrected.items()
+    }
+    expected = {s: float(np.linalg.norm(cal.reference(s))) for s in sensors}
+    dip = None
+    if len(sensors) == 2:
+        a, m = corrected["accel"][still], corrected["mag"][still]
+        cos = np.einsum("ni,ni->n", a, m) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
+        dip = np.degrees(np.arcsin(np.clip(-cos, -1, 1)))
+    figures["histograms"] = _histogram_figure(Figure, norms, expected, dip, cal)
+    sample = _thin(np.arange(log.n), np.random.default_rng(0))
+    for s in sensors:
+        figures[f"{s}_sphere"] = _sphere_figure(
+            Figure, _LABELS[s], getattr(log, s)[sample], corrected[s][sample], expected[s]
+        )
+    if located and len(located) == len(poses):
+        directions = {}
+        for s in sensors:
+            means = np.array([corrected[s][p.rows].mean(axis=0) for p in poses])
+            directions[_LABELS[s]] = means / np.linalg.norm(means, axis=1, keepdims=True)
+        figures["coverage"] = _coverage_figure(Figure, directions, poses)
+    return figures
+
+
 def write_report(
     cal: Calibration,
     log: Log,
@@ -686,55 +775,7 @@ def write_report(
     """
     if same_file(output, log.path):
         raise InputError(f"{output}: is the input log {log.path}; write the report to another file")
-    Figure = _figure_class()
-    rng = np.random.default_rng(0)
-    poses = _poses(cal, log)
-    sensors: list[str] = [
-        s
-        for s in SENSORS
-        if getattr(cal, s) is not None and getattr(log, s) is not None and log.n > 0
-    ]
-    if not sensors:
-        raise InputError(
-            f"{log.path}: none of the calibrated sensors' columns are in this log; pass "
-            "--accel-cols/--mag-cols"
-        )
-    located = [p for p in poses if p.spans]
-    fitted_rows = [p.rows for p in located if p.rejected is None]
-    still = np.concatenate(fitted_rows) if fitted_rows else np.arange(log.n)
-    rejected_rows = [p.rows for p in located if p.rejected is not None]
-    dropped = np.concatenate(rejected_rows) if rejected_rows else np.zeros(0, dtype=np.int64)
-
-    figures: dict[str, MplFigure] = {"timeline": _timeline_figure(Figure, log, sensors, poses)}
-    with_residuals = [s for s in sensors if any(p.residual[s] is not None for p in poses)]
-    if with_residuals:
-        figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)
-    corrected = {s: cal.sensor(s).correct(getattr(log, s)) for s in sensors}
-    norms = {
-        s: (np.linalg.norm(c[still], axis=1), np.linalg.norm(c[dropped], axis=1))
-        for s, c in corrected.items()
-    }
-    expected = {s: float(np.linalg.norm(cal.reference(s))) for s in sensors}
-    dip = None
-    if len(sensors) == 2:
-        a, m = corrected["accel"][still], corrected["mag"][still]
-        cos = np.einsum("ni,ni->n", a, m) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
-        dip = np.degrees(np.arcsin(np.clip(-cos, -1, 1)))
-    figures["histograms"] = _histogram_figure(Figure, norms, expected, dip, cal)
-    sample = _thin(np.arange(log.n), rng)
-    for s in sensors:
-        figures[f"{s}_sphere"] = _sphere_figure(
-            Figure, _LABELS[s], getattr(log, s)[sample], corrected[s][sample], expected[s]
-        )
-    if located and len(located) == len(poses):
-        directions = {}
-        for s in sensors:
-            means = np.array([corrected[s][p.rows].mean(axis=0) for p in poses])
-            directions[_LABELS[s]] = means / np.linalg.norm(means, axis=1, keepdims=True)
-        figures["coverage"] = _coverage_figure(Figure, directions, poses)
-    if cal.gyro is not None and cal.gyro_segments:
-        figures["gyro"] = _gyro_figure(Figure, cal)
-
+    figures, poses = _figures(cal, log)
     if png_dir is not None:
         Path(png_dir).mkdir(parents=True, exist_ok=True)
     sections = []

@@ -275,6 +275,17 @@ def print_summary(
             console,
             f"dip angle: {_pm(cal.dip_deg, cal.dip_std_deg, '.3f')}° (positive below the horizon)",
         )
+    ref = cal.field_reference
+    if ref is not None:
+        east = "E" if ref.declination_deg >= 0 else "W"
+        dip = _pm(ref.dip_deg, ref.dip_std_deg, ".2f")
+        _say(
+            console,
+            f"{ref.model} at {ref.place} on {ref.date}: dip {dip}°, "
+            f"intensity {ref.intensity / 1000:.2f} µT, declination "
+            f"{abs(ref.declination_deg):.2f}° {east} (true heading = magnetic heading "
+            f"{'+' if ref.declination_deg >= 0 else '-'} {abs(ref.declination_deg):.2f}°)",
+        )
     if cal.misalignment_deg is not None:
         _say(
             console,

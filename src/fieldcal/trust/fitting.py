@@ -27,11 +27,13 @@ from scipy.special import chdtrc
 
 from ..calibration import Calibration, ParameterCovariance, RejectedPose, SensorCalibration
 from ..methods import METHODS, Method
+from ..reference import DIP_ALLOWANCE_DEG, FieldReference
 from ..stats.noise import wishart_std
 from ..stats.poses import PoseStats, Samples
 from .accuracy import predict_accuracy
 from .certificate import certify, pose_table
 from .evaluate import Evaluation, evaluate
+from .handedness import reference_mirrored
 from .outliers import REASONS, pose_tests
 from .pose_noise import (
     PoseNoise,
@@ -40,9 +42,9 @@ from .pose_noise import (
     noise_reported,
     widening,
 )
-from .verdict import Findings, judge
+from .verdict import Findings, ReferenceCheck, judge
 
-__all__ = ["fit_trusted"]
+__all__ = ["fit_trusted", "reference_mirrored"]
 
 Array = NDArray[np.float64]
 
@@ -160,11 +162,16 @@ def fit_trusted(
     robust: bool,
     alpha: float,
     mag_mirrored: bool = False,
+    reference: FieldReference | None = None,
+    dip_allowance_deg: float = DIP_ALLOWANCE_DEG,
     on_progress: Callable[[str], None] | None = None,
 ) -> Calibration:
     """Fit with ``method`` and attach the noise model, error bars, certificate, rejected poses,
     verdict and accuracy (see the module docstring). ``stats`` must hold all the caller's poses;
-    ``cal.rejected`` and ``cal.poses`` use their numbering."""
+    ``cal.rejected`` and ``cal.poses`` use their numbering. With a ``reference`` (the World
+    Magnetic Model's field at the site) the magnetometer's handedness follows its dip rather than
+    ``mag_mirrored`` (:func:`~fieldcal.trust.handedness.reference_mirrored`) and the verdict
+    compares the dips."""
     runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options, on_progress)
     n_total = stats.n_poses
     keep = np.arange(n_total)
@@ -217,10 +224,17 @@ def fit_trusted(
         cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total, first_options
     )
     # the handedness is a choice of gauge: make it before the verdict reads the dip
+    check = None
+    if reference is not None:
+        decided = reference_mirrored(result, reference, dip_allowance_deg)
+        check = ReferenceCheck(reference, dip_allowance_deg, mag_mirrored, decided)
+        mag_mirrored = mag_mirrored if decided is None else decided
     result = result.with_mag_handedness(mag_mirrored)
     accuracy = predict_accuracy(result)
-    verdict = judge(result, current, found, accuracy)
-    return dataclasses.replace(result, accuracy=accuracy, verdict=verdict)
+    verdict = judge(result, current, found, accuracy, check)
+    return dataclasses.replace(
+        result, accuracy=accuracy, verdict=verdict, field_reference=reference
+    )
 
 
 def _finish(

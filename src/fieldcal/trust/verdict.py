@@ -9,15 +9,18 @@ Every rule is a code, a level and a fixed message (filled with numbers), listed 
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, Verdict
+from ..reference import FieldReference
 from ..stats.poses import PoseStats
 
-__all__ = ["RULES", "Findings", "judge"]
+__all__ = ["RULES", "Findings", "ReferenceCheck", "judge"]
 
 Array = NDArray[np.float64]
 
@@ -86,6 +89,33 @@ RULES: dict[str, tuple[str, str]] = {
         "otherwise the magnetometer is mirrored (--mag-mirrored) or the accelerometer reports "
         "gravity instead of specific force (--accel-sign gravity)",
     ),
+    "reference_mirrored": (
+        "warn",
+        "the magnetometer came out mirrored relative to the accelerometer to match the "
+        "{model}'s dip at {place} ({expected:+.1f}°): if it is (as on an LSM9DS1), state "
+        "--mag-mirrored; if it is not, the accelerometer reports gravity instead of specific "
+        "force (--accel-sign gravity), or --location is in the wrong hemisphere",
+    ),
+    "reference_unmirrored": (
+        "warn",
+        "--mag-mirrored was stated, but the {model}'s dip at {place} ({expected:+.1f}°) makes "
+        "the magnetometer right-handed relative to the accelerometer, and the reference decided: "
+        "drop --mag-mirrored, or check --accel-sign and --location",
+    ),
+    "reference_undecided": (
+        "note",
+        "the dip at {place} ({expected:+.1f}° in the {model}, fitted {dip:+.1f}°) is too close "
+        "to 0° to tell a mirrored magnetometer; its handedness follows --mag-mirrored",
+    ),
+    "reference_dip": (
+        "warn",
+        "the fitted dip {dip:.2f} ± {std:.2f}° differs from the {model}'s {expected:.2f} ± "
+        "{ref_std:.2f}° at {place} on {date} by {diff:.1f}°, more than 3σ plus the "
+        "{allowance:g}° allowed for local anomalies: a disturbed site (steel, magnets, "
+        "electronics, reinforced concrete: calibrate outdoors away from them), a wrong "
+        "--location or --date, an accelerometer reporting gravity (--accel-sign gravity) or a "
+        "mirrored magnetometer (--mag-mirrored)",
+    ),
     "not_ml": (
         "warn",
         "the {method} estimate's likelihood is far below the optimum (J exceeds the maximum "
@@ -125,6 +155,49 @@ class Findings:
     excess: dict[str, object] | None
 
 
+@dataclass(frozen=True)
+class ReferenceCheck:
+    """The World Magnetic Model's field for the verdict: the reference, the allowance for local
+    anomalies (degrees of dip), the handedness the user stated and the one the reference decided
+    (``None``: it could not)."""
+
+    field: FieldReference
+    allowance_deg: float
+    stated_mirrored: bool
+    decided_mirrored: bool | None
+
+
+#: A fitted dip further than this many combined standard errors (plus the allowance) from the
+#: model's draws a warning.
+REFERENCE_SIGMAS = 3.0
+
+
+def _reference_rules(
+    add: Callable[..., None], dip: float, std: float | None, check: ReferenceCheck
+) -> None:
+    ref = check.field
+    where = {"model": ref.model, "place": ref.place, "expected": ref.dip_deg}
+    if check.decided_mirrored is None:
+        add("reference_undecided", dip=dip, **where)
+    elif check.decided_mirrored and not check.stated_mirrored:
+        add("reference_mirrored", **where)
+    elif not check.decided_mirrored and check.stated_mirrored:
+        add("reference_unmirrored", **where)
+    std = 0.0 if std is None else std
+    diff = abs(dip - ref.dip_deg)
+    if diff > REFERENCE_SIGMAS * math.hypot(std, ref.dip_std_deg) + check.allowance_deg:
+        add(
+            "reference_dip",
+            dip=dip,
+            std=std,
+            ref_std=ref.dip_std_deg,
+            diff=diff,
+            date=ref.date,
+            allowance=check.allowance_deg,
+            **where,
+        )
+
+
 def _axis(directions: Array) -> str:
     _, V = np.linalg.eigh(directions.T @ directions / max(len(directions), 1))
     return "xyz"[int(np.argmax(np.abs(V[:, 0])))]
@@ -135,10 +208,16 @@ def _unit(x: Array) -> Array:
 
 
 def judge(
-    cal: Calibration, stats: PoseStats, found: Findings, accuracy: Accuracy | None = None
+    cal: Calibration,
+    stats: PoseStats,
+    found: Findings,
+    accuracy: Accuracy | None = None,
+    reference: ReferenceCheck | None = None,
 ) -> Verdict:
     """Apply :data:`RULES` to a finished calibration; the worst level wins. ``accuracy``, when
-    given, stands for ``cal.accuracy`` (so both can be attached in one step)."""
+    given, stands for ``cal.accuracy`` (so both can be attached in one step); ``reference``
+    compares the dip with the World Magnetic Model's (its sign is then settled, so the
+    negative-dip note is not given)."""
     reasons: list[tuple[str, str]] = []
 
     def add(code: str, **values: object) -> None:
@@ -199,7 +278,9 @@ def judge(
     if lowest < COVERAGE:
         add("coverage", axis=_axis(directions))
     dip = cal.dip_deg
-    if dip is not None and dip < 0:
+    if dip is not None and reference is not None:
+        _reference_rules(add, dip, cal.dip_std_deg, reference)
+    elif dip is not None and dip < 0:
         add("negative_dip", dip=dip)
     if found.excess is not None:
         add("not_ml", **found.excess)

@@ -15,7 +15,9 @@ FORMULA = "out[i] = sum_j M[i][j] * (raw[j] - B[j]), M = inv(gain), B = bias"
 CONTENT = (
     "`static const float FIELDCAL_ACCEL_BIAS[3]`, `FIELDCAL_ACCEL_MATRIX[3][3]` (row major), "
     "the same for `MAG` (and `GYRO`, in rad/s, when calibrated), and "
-    "`fieldcal_apply(M, B, raw, out)`"
+    "`fieldcal_apply(M, B, raw, out)`; for a Kalman filter each sensor's `NOISE_COV` and "
+    "`RESIDUAL_COV` (calibrated units²), `FIELDCAL_GRAVITY_NED`, `FIELDCAL_MAGNETIC_NED` and, "
+    "with `--location`, `FIELDCAL_DECLINATION_DEG`"
 )
 
 _FLOAT32 = np.finfo(np.float32)
@@ -54,6 +56,58 @@ def _floats(values: NDArray[np.float64]) -> str:
     return ", ".join(c_float(v) for v in values)
 
 
+def _array(name: str, values: NDArray[np.float64], comment: str) -> list[str]:
+    """``static const float name[3]`` or ``[3][3]`` with its comment; a comment saying why
+    instead when a float cannot hold the values (the correction itself was written)."""
+    values = values + 0.0  # -0.0 as 0.0
+    try:
+        if values.ndim == 1:
+            body = f"[3] = {{{_floats(values)}}};"
+        else:
+            rows = ",\n    ".join("{" + _floats(row) + "}" for row in values)
+            body = f"[3][3] = {{\n    {rows}\n}};"
+    except ValueError:
+        return [f"/* {name}: not written, a C float cannot hold it */"]
+    return [f"/* {comment} */", f"static const float {name}{body}"]
+
+
+def _filter_lines(cal: Calibration) -> list[str]:
+    """What a Kalman filter needs beside the corrections: noise, residual error, the fields."""
+    lines: list[str] = []
+    for name, M, _ in corrections(cal):
+        sensor = cal.sensor(name)
+        tag, unit = name.upper(), "(rad/s)^2" if name == "gyro" else "calibrated units^2"
+        lines += _array(
+            f"FIELDCAL_{tag}_NOISE_COV",
+            M @ sensor.noise_cov @ M.T,
+            f"{NAMES[name]}: noise covariance of one corrected sample, {unit} (R of a filter)",
+        )
+        if name != "gyro":
+            lines += _array(
+                f"FIELDCAL_{tag}_RESIDUAL_COV",
+                sensor.pose_noise_std**2 * (M @ M.T),
+                f"{NAMES[name]}: error every corrected reading keeps however long it is "
+                f"averaged (pose-level noise), {unit}: add to R",
+            )
+    fields = (("GRAVITY", cal.gravity, "accelerometer"), ("MAGNETIC", cal.magnetic, "magnetometer"))
+    for tag, vector, sensor_name in fields:
+        if vector is not None:
+            lines += _array(
+                f"FIELDCAL_{tag}_NED",
+                np.asarray(vector, dtype=float),
+                f"what the corrected {sensor_name} reads at rest in the world frame "
+                "(North-East-Down): v_body = R v_world",
+            )
+    ref = cal.field_reference
+    if ref is not None:
+        lines += [
+            f"/* {ref.model} at {ref.place} on {ref.date}: true heading = magnetic heading + "
+            "declination (east positive) */",
+            f"#define FIELDCAL_DECLINATION_DEG {c_float(ref.declination_deg)}",
+        ]
+    return [*lines, ""]
+
+
 def write(cal: Calibration) -> str:
     """A C header with ``static const float`` arrays and the formula in a comment.
 
@@ -87,6 +141,7 @@ def write(cal: Calibration) -> str:
         rows = ",\n    ".join("{" + _floats(row) + "}" for row in M)
         lines.append(f"static const float FIELDCAL_{tag}_MATRIX[3][3] = {{\n    {rows}\n}};")
         lines.append("")
+    lines += _filter_lines(cal)
     lines += [
         "static inline void fieldcal_apply(const float M[3][3], const float B[3],",
         "                                  const float raw[3], float out[3]) {",
