@@ -156,6 +156,23 @@ def test_options_are_checked_before_reading(tmp_path):
     (tmp_path / "taken" / "cal.json").write_text("{}")
     result = runner.invoke(cli, ["capture", "--from", "-", "--out", str(tmp_path / "taken")])
     assert result.exit_code == 2 and "--force" in result.output
+    # a bad --location is refused before the folder is made or anything read
+    result = runner.invoke(
+        cli, ["capture", "--from", "-", "--location", "95,0", "--out", str(tmp_path / "new")]
+    )
+    assert result.exit_code == 2 and "latitude 95" in result.output
+    assert not (tmp_path / "new").exists()
+
+
+def test_capture_with_a_location_writes_the_reference(recorded, tmp_path):
+    path, _ = recorded
+    out = tmp_path / "cap"
+    args = ["capture", "--from", str(path), "--plain", "--out", str(out)]
+    result, _ = _plain_run([*args, "--location", "52.0,4.37", "--date", "2026-06-01"])
+    assert result.exit_code == 0, result.output
+    document = json.loads((out / "cal.json").read_text())
+    assert document["reference"]["model"] == "WMM2025"
+    assert document["options"]["mag_handedness"] in ("reference", "stated")
 
 
 def test_plan_command(recorded, tmp_path):

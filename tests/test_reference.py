@@ -226,6 +226,11 @@ def test_cli_location_writes_the_reference(site_log, tmp_path):
     assert doc["reference"]["dip_deg"] == pytest.approx(67.18, abs=0.01)
     assert doc["options"]["mag_handedness"] == "reference"
     assert "WMM2025" in result.output and "declination" in result.output
+    pytest.importorskip("matplotlib")
+    page = tmp_path / "report.html"
+    report = CliRunner().invoke(cli, ["report", str(out), str(site_log), "-o", str(page)])
+    assert report.exit_code == 0, report.output
+    assert "WMM2025 at 52.00° N, 4.37° E on 2026-06-01: dip 67.18" in page.read_text()
     # a southern location after the option, with its minus sign
     south = CliRunner().invoke(
         cli, ["calibrate", str(site_log), "--json", "--location", "-33.9,151.2", "--date", DAY]

@@ -487,6 +487,14 @@ def _summary_html(cal: Calibration, log: Log, poses: list[_Pose]) -> str:
         rows.append(
             ("certificate", f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g}{status}")
         )
+    ref = cal.field_reference
+    if ref is not None:
+        text = (
+            f"{ref.model} at {ref.place} on {ref.date}: dip {_pm(ref.dip_deg, ref.dip_std_deg, 3)}°"
+            f" (fitted {_pm(cal.dip_deg, cal.dip_std_deg, 3)}°), {ref.intensity / 1000:.2f} µT, "
+            f"declination {ref.declination_deg:+.2f}°"
+        )
+        rows.append(("Earth's field", _esc(text)))
     rows.append(("created", f"{_esc(cal.created)} by fieldcal {_esc(cal.version)}"))
     return "<table>" + "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows) + "</table>"
 
