@@ -32,6 +32,7 @@ from .simulation.session import Session, simulate
 from .stats.poses import PoseStats, SensorStats, stats_from_means, summarize
 
 if TYPE_CHECKING:
+    from .batch import calibrate_many
     from .logs import Log
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
@@ -60,6 +61,7 @@ __all__ = [
     "align",
     "calibrate",
     "calibrate_log",
+    "calibrate_many",
     "expected_field",
     "fit_ellipsoid",
     "metrics",
@@ -83,6 +85,7 @@ _LAZY = {
     "Targets": "fieldcal.trust.plan",
     "plan_poses": "fieldcal.trust.plan",
     "Store": "fieldcal.store",
+    "calibrate_many": "fieldcal.batch",
     "expected_field": "fieldcal.reference",
 }
 

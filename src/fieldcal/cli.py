@@ -686,6 +686,20 @@ def _fit_choices(opts: _ParsedOptions) -> dict[str, Any]:
     }
 
 
+def _run_options(opts: _ParsedOptions) -> dict[str, Any]:
+    """:func:`fieldcal.pipeline.run_log`'s keywords from the command's options: how the log is
+    cut into poses (absent ones take the library's defaults) and the fit's choices."""
+    cut = {k: opts.get(k) for k in ("poses", "rate") if opts.get(k) is not None}
+    return {
+        "window": opts.get("window"),
+        "min_still": opts.get("min_still"),
+        "still_trim": opts.get("trim"),
+        "still_threshold": opts.get("still_threshold"),
+        **cut,
+        **_fit_choices(opts),
+    }
+
+
 def _run_calibration(
     log: Log, opts: _ParsedOptions, progress: _Progress = None
 ) -> tuple[Calibration, PoseSet, dict[str, Any], list[str]]:
@@ -695,19 +709,9 @@ def _run_calibration(
     take the library's defaults (the method, robust fitting, estimated pose-level noise).
     ``progress`` hears the steps (and the library's progress lines) when given.
     """
-    cut = {"poses": opts.get("poses"), "rate": opts.get("rate")}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        run = _lazy(".pipeline").run_log(
-            log,
-            window=opts.get("window"),
-            min_still=opts.get("min_still"),
-            still_trim=opts.get("trim"),
-            still_threshold=opts.get("still_threshold"),
-            on_progress=progress,
-            **{k: v for k, v in cut.items() if v is not None},
-            **_fit_choices(opts),
-        )
+        run = _lazy(".pipeline").run_log(log, on_progress=progress, **_run_options(opts))
     # the library's warnings belong in the summary, not as tracebacks; numpy's floating-point
     # RuntimeWarnings are the library's business and never reach the terminal
     notes = list(run.notes) + [
@@ -1379,6 +1383,162 @@ def store_drift(
         with _files.replacing(plot) as temp:
             figure.savefig(temp, format="png", dpi=90)
         click.echo(f"wrote {plot}")
+
+
+# ----------------------------------------------------------------------------- batch
+#: Failures listed by name at the end of a batch; the rest are counted (all are in the summary).
+_BATCH_SHOWN = 50
+
+
+def _batch_options(opts: _ParsedOptions) -> dict[str, Any]:
+    """:func:`fieldcal.calibrate_many`'s keywords from the command's options: the reading
+    options as :func:`_load` passes them, the rest as :func:`_run_calibration` does."""
+    reading = {
+        k: v
+        for k in _LogOptions.__annotations__
+        if (v := opts.get(k)) is not None and v is not False
+    }
+    return {**reading, **_run_options(opts)}
+
+
+@contextmanager
+def _batch_bar(quiet: bool, total: int) -> Iterator[Callable[[Any], None]]:
+    """A progress bar on stderr (logs done, logs/s, time left), or nothing: off with
+    ``--quiet`` and when stderr is not a terminal."""
+    stream = sys.stderr
+    if quiet or stream is None or not stream.isatty():
+        yield lambda row: None
+        return
+    rich_progress = _lazy("rich.progress")
+    bar = rich_progress.Progress(
+        rich_progress.TextColumn("calibrating"),
+        rich_progress.BarColumn(),
+        rich_progress.MofNCompleteColumn(),
+        rich_progress.TextColumn("{task.fields[rate]}"),
+        rich_progress.TextColumn("ETA"),
+        rich_progress.TimeRemainingColumn(),
+        console=_console(stderr=True),
+    )
+    started = time.perf_counter()
+    with bar:
+        task = bar.add_task("batch", total=total, rate="")
+
+        def advance(row: Any) -> None:
+            done = bar.tasks[0].completed + 1
+            rate = done / max(time.perf_counter() - started, 1e-9)
+            bar.update(task, advance=1, rate=f"{rate:.3g} logs/s")
+
+        yield advance
+
+
+@cli.command()
+@click.argument("logs", nargs=-1, required=True)
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    help="Folder for <device>/cal.json (and exports) and summary.parquet / summary.csv.",
+)
+@_fit_options
+@click.option(
+    "--poses",
+    type=click.Choice(["still", "windows"]),
+    default="still",
+    show_default=True,
+    help="Without a pose column: detect still intervals, or cut the log into windows of "
+    "--window seconds (a log turned slowly with no rests).",
+)
+@_log_options
+@_detect_options
+@click.option(
+    "--export",
+    "export_names",
+    multiple=True,
+    type=click.Choice(list(exports.FORMATS)),
+    help="Also write this format beside each cal.json (repeat for more): cal.h, cal.parm, ...",
+)
+@click.option("--jobs", "-j", type=click.IntRange(1), help="Worker processes. [default: the cores]")
+@click.option(
+    "--scheduler",
+    envvar="DASK_SCHEDULER_ADDRESS",
+    help="Run on this Dask cluster (tcp://HOST:PORT; default: $DASK_SCHEDULER_ADDRESS): the "
+    "workers read the logs from a shared path or fsspec URL and write into --out.",
+)
+@click.option("--resume", is_flag=True, help="Skip the logs whose results --out already holds.")
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and the failures.")
+@_force
+def batch(
+    logs: tuple[str, ...],
+    out_dir: str,
+    export_names: tuple[str, ...],
+    jobs: int | None,
+    scheduler: str | None,
+    resume: bool,
+    quiet: bool,
+    force: bool,
+    pose_noise: str,
+    **opts: Unpack[_CalibrateOptions],
+) -> None:
+    """Calibrate every LOG on its own (files, globs, fsspec URLs, manifest .csv files) and
+    write one summary table.
+
+    Each log's results go to OUT/<device>/cal.json; OUT/summary.parquet and summary.csv
+    hold one row per log (verdict, reasons, dip, gains and biases with their errors, error).
+    A log that fails never stops the batch. Exit code 3 when any log fails.
+    """
+    options: _ParsedOptions = {**opts, "pose_noise": _parse_pose_noise(pose_noise)}
+    _parse_noise(opts.get("noise"))
+    _check_reference(options)
+    many = _lazy(".batch")
+    specs = _lazy(".batch.manifest").expand_logs(logs)
+    started = time.perf_counter()
+    try:
+        with _batch_bar(quiet, len(specs)) as advance:
+            result = many.calibrate_many(
+                specs,
+                out=out_dir,
+                jobs=jobs,
+                scheduler=scheduler or None,
+                exports=export_names,
+                resume=resume,
+                force=force,
+                keep_calibrations=False,
+                on_result=advance,
+                **_batch_options(options),
+            )
+    except KeyboardInterrupt:
+        click.echo(
+            f"Interrupted; the logs finished are kept in {out_dir} (summary.csv lists them); "
+            "run the same command with --resume to calibrate the rest",
+            err=True,
+        )
+        click.get_current_context().exit(EXIT_INTERRUPTED)
+    seconds = time.perf_counter() - started
+    rows = result.rows
+    failures = result.failed
+    console = _console()
+    if not quiet:
+        levels = [r["verdict"] for r in rows]
+        errors = sum(1 for r in rows if r["error"])
+        console.print(
+            f"calibrated {len(rows)} log(s) in {seconds:.1f} s "
+            f"({len(rows) / max(seconds, 1e-9):.3g} logs/s): {levels.count('pass')} pass, "
+            f"{levels.count('warn')} warn, {levels.count('fail')} fail"
+            + (f" ({errors} with an error)" if errors else "")
+            + (f"; {result.resumed} kept from an earlier batch" if result.resumed else "")
+        )
+        console.print("wrote " + ", ".join(str(p) for p in result.files))
+    if failures:
+        console.print(f"failed ({len(failures)}):")
+        for row in failures[:_BATCH_SHOWN]:
+            why = row["error"] or row["reasons"] or "verdict fail"
+            console.print(f"  {row['device']} ({row['log']}): {why}")
+        if len(failures) > _BATCH_SHOWN:
+            console.print(
+                f"  ... and {len(failures) - _BATCH_SHOWN} more: the rows with verdict fail "
+                "in the summary"
+            )
+        click.get_current_context().exit(EXIT_FAIL)
 
 
 # ----------------------------------------------------------------------------- demo

@@ -520,7 +520,6 @@ def fit(
         counts of gain updates, sign fixes and cost increases.
     """
     _check(stats, gamma, max_iterations, rotation_tol, rotation_max_iterations)
-    started = time.perf_counter()
     result = run_greedy(
         stats,
         float(gamma),
@@ -553,7 +552,6 @@ def fit(
             "max_iterations": int(max_iterations),
             "rotation_tol": float(rotation_tol),
             "rotation_max_iterations": int(rotation_max_iterations),
-            "seconds": round(time.perf_counter() - started, 6),
             "gain_updates": result.gain_updates,
             "sign_fixes": result.sign_fixes,
             "cost_increases": result.cost_increases,
