@@ -305,3 +305,26 @@ def test_a_url_is_read_by_the_worker(logs, tmp_path):
     from_url = result.calibrations[url]
     assert from_url.options["log"] == url
     assert from_url.dip_deg == calibrate_log(logs[0]).dip_deg
+
+
+def test_calibrate_options_flow_to_every_log(logs, tmp_path):
+    """Options of ``calibrate`` reach each log's calibration through the command line: here
+    the World Magnetic Model reference, whose dip lands in the summary beside the fitted one."""
+    from fieldcal.reference import expected_field
+
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        cli, ["batch", *map(str, logs[:2]), "--out", str(out), "-j", "1", "--location",
+              "-33.9,151.2", "--date", "2026-06-01"]
+    )  # fmt: skip
+    assert result.exit_code in (0, 3), result.output
+    want = expected_field((-33.9, 151.2), "2026-06-01").dip_deg
+    with (out / "summary.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["reference_dip_deg"]) for r in rows] == pytest.approx([want, want])
+    doc = json.loads((out / rows[0]["device"] / "cal.json").read_text())
+    assert doc["reference"]["dip_deg"] == pytest.approx(want)
+    bad = CliRunner().invoke(cli, ["batch", str(logs[0]), "--out", str(tmp_path / "x"),
+                                   "--location", "95,0"])  # fmt: skip
+    assert bad.exit_code == 2 and "latitude 95" in bad.output
+    assert not (tmp_path / "x").exists()  # refused before any work

@@ -61,6 +61,7 @@ COLUMN_TYPES: dict[str, type] = {
     "rejected": str,  # which and why, " | " between them
     "dip_deg": float,
     "dip_std_deg": float,
+    "reference_dip_deg": float,  # the World Magnetic Model's at --location (NaN without one)
     "misalignment_deg": float,
     "misalignment_std_deg": float,
     "gravity_norm": float,  # |g| of the fit (1 unless --gravity)
@@ -158,6 +159,9 @@ def row_for(
         rejected=_SEPARATOR.join(f"pose {r.index} ({r.sensor}): {r.reason}" for r in cal.rejected),
         dip_deg=_number(cal.dip_deg),
         dip_std_deg=_number(cal.dip_std_deg),
+        reference_dip_deg=_number(
+            None if cal.field_reference is None else cal.field_reference.dip_deg
+        ),
         misalignment_deg=_number(cal.misalignment_deg),
         misalignment_std_deg=_number(cal.misalignment_std_deg),
         gravity_norm=_number(cal.gravity_norm),
