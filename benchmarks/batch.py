@@ -28,8 +28,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _report import stamp, write_section
@@ -43,22 +41,7 @@ DAY = 86_400.0
 
 def write_log(path: Path, seed: int, samples: int) -> None:
     """A Table 1 session with ``samples`` per pose, as ``fieldcal simulate`` writes it."""
-    s = fieldcal.simulate("paper", seed=seed, samples=(samples, samples))
-    data = np.column_stack(
-        [
-            np.repeat(np.arange(len(s.counts)), s.counts),
-            np.concatenate(s.accel),
-            np.concatenate(s.mag),
-        ]
-    )
-    np.savetxt(
-        path,
-        data,
-        delimiter=",",
-        header="pose,ax,ay,az,mx,my,mz",
-        comments="",
-        fmt=["%d"] + ["%.9g"] * 6,
-    )
+    fieldcal.simulate("paper", seed=seed, samples=(samples, samples)).write_csv(path)
 
 
 def run(name: str, logs: list[Path], out: Path, workers: int, **where: object) -> dict:

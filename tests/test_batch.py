@@ -10,7 +10,6 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -50,21 +49,7 @@ REQUIRED = (
 def _log(path: Path, seed: int, *, poses: int = 12, samples: int = 80, meta: str = "") -> Path:
     """A simulated session as the ``simulate`` command writes it (a pose column)."""
     s = fieldcal.simulate("paper", seed=seed, n_poses=poses, samples=(samples, samples))
-    data = np.column_stack(
-        [
-            np.repeat(np.arange(len(s.counts)), s.counts),
-            np.concatenate(s.accel),
-            np.concatenate(s.mag),
-        ]
-    )
-    np.savetxt(
-        path,
-        data,
-        delimiter=",",
-        header=meta + "pose,ax,ay,az,mx,my,mz",
-        comments="",
-        fmt=["%d"] + ["%.9g"] * 6,
-    )
+    s.write_csv(path, preamble=meta)
     return path
 
 

@@ -204,12 +204,7 @@ def site_log(tmp_path_factory):
     ref = expected_field(SITE, DAY)
     session = _session(ref.dip_deg)
     path = tmp_path_factory.mktemp("ref") / "log.csv"
-    rows = [
-        f"{i},{','.join(f'{x:.17g}' for x in a)},{','.join(f'{x:.17g}' for x in m)}"
-        for i, (A, M) in enumerate(zip(session.accel, session.mag, strict=True))
-        for a, m in zip(A, M, strict=False)
-    ]
-    path.write_text("pose,ax,ay,az,mx,my,mz\n" + "\n".join(rows) + "\n")
+    session.write_csv(path)
     return path
 
 

@@ -486,6 +486,17 @@ def _parse_pose_noise(spec: str) -> str | float | dict[str, str | float]:
     return out
 
 
+#: How a log without a pose column is cut into poses (``calibrate``, ``batch``).
+_POSES_OPTION = click.option(
+    "--poses",
+    type=click.Choice(["still", "windows"]),
+    default="still",
+    show_default=True,
+    help="Without a pose column: detect still intervals, or cut the log into windows of "
+    "--window seconds (a log turned slowly with no rests).",
+)
+
+
 def _log_options(f: _Command) -> _Command:
     options = [
         click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised)."),
@@ -733,14 +744,7 @@ def _write_json(path: str | Path, doc: dict[str, object]) -> None:
     help=f"Calibration JSON to write. [default: {_DEFAULT_OUTPUT}; with --json, only when given]",
 )
 @_fit_options
-@click.option(
-    "--poses",
-    type=click.Choice(["still", "windows"]),
-    default="still",
-    show_default=True,
-    help="Without a pose column: detect still intervals, or cut the log into windows of "
-    "--window seconds (a log turned slowly with no rests).",
-)
+@_POSES_OPTION
 @_log_options
 @_detect_options
 @click.option(
@@ -942,23 +946,8 @@ def simulate(
     else:
         session = simulate_session(preset, seed=seed, **extra)
         true_cal = session.truth
-        counts = session.counts
-        data = np.column_stack(
-            [
-                np.repeat(np.arange(len(counts)), counts),
-                np.concatenate(session.accel),
-                np.concatenate(session.mag),
-            ]
-        )
         with _files.replacing(output) as temp:
-            np.savetxt(
-                temp,
-                data,
-                delimiter=",",
-                header="pose,ax,ay,az,mx,my,mz",
-                comments="",
-                fmt=["%d"] + ["%.9g"] * 6,
-            )
+            session.write_csv(temp)
     if truth:
         _files.write_text(truth, true_cal.to_json() + "\n")
     click.echo(f"wrote {output}" + (f" and {truth}" if truth else ""))
@@ -1440,14 +1429,7 @@ def _batch_bar(quiet: bool, total: int) -> Iterator[Callable[[Any], None]]:
     help="Folder for <device>/cal.json (and exports) and summary.parquet / summary.csv.",
 )
 @_fit_options
-@click.option(
-    "--poses",
-    type=click.Choice(["still", "windows"]),
-    default="still",
-    show_default=True,
-    help="Without a pose column: detect still intervals, or cut the log into windows of "
-    "--window seconds (a log turned slowly with no rests).",
-)
+@_POSES_OPTION
 @_log_options
 @_detect_options
 @click.option(

@@ -9,6 +9,7 @@ gains ``I + δK`` with ``δK_ij ~ U[−0.1, 0.1]``, and covariances ``α (…)``
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TypedDict, Unpack
@@ -127,6 +128,20 @@ class Session(ArrayDataclass):
     @property
     def counts(self) -> NDArray[np.int64]:
         return np.asarray(self.drawn["counts"])
+
+    def write_csv(self, path: str | os.PathLike[str], preamble: str = "") -> None:
+        """The session as ``fieldcal simulate`` writes it: a ``pose`` column and one block of
+        rows per pose (``pose,ax,ay,az,mx,my,mz``), with ``preamble`` (whole lines, each ending
+        in a newline, such as a ``# device: IMU-7`` line) above the header."""
+        data = np.column_stack(
+            [
+                np.repeat(np.arange(len(self.counts)), self.counts),
+                *map(np.concatenate, (self.accel, self.mag)),
+            ]
+        )
+        header = preamble + "pose,ax,ay,az,mx,my,mz"
+        fmt = ["%d"] + ["%.9g"] * 6
+        np.savetxt(path, data, delimiter=",", header=header, comments="", fmt=fmt)
 
 
 def _covariance(rng: np.random.Generator, alpha_range: tuple[float, float]) -> Array:
