@@ -161,6 +161,35 @@ def test_a_dying_worker_is_retried_once(tmp_path, monkeypatch):
     assert (folder / "u1.csv.crashed").exists()
 
 
+def test_a_dying_dask_worker_is_retried(tmp_path, monkeypatch):
+    """On a cluster the scheduler reschedules the log of a worker that died (the nanny starts
+    a new worker); with ``allowed-failures`` 1, once: a log that kills its worker every time
+    then gets a failed row and the batch goes on."""
+    distributed = pytest.importorskip("distributed")
+    dask = pytest.importorskip("dask")
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    paths = [_log(folder / f"d{i}.csv", seed=i, poses=10, samples=40) for i in range(3)]
+    monkeypatch.setenv(CRASH_ENV, "d1.csv:once,d2.csv")  # before the workers start
+    with (
+        # one log per worker at a time: a death then counts against the log that caused it only
+        dask.config.set(
+            {
+                "distributed.scheduler.allowed-failures": 1,
+                "distributed.scheduler.worker-saturation": 1.0,
+            }
+        ),
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+    ):
+        result = calibrate_many(paths, out=tmp_path / "out", scheduler=cluster.scheduler_address)
+    verdicts = {r["device"]: (r["verdict"], r["error"]) for r in result.rows}
+    assert verdicts["d0"] == ("pass", "") and verdicts["d1"] == ("pass", "")
+    assert verdicts["d2"][0] == "fail" and "its workers died" in verdicts["d2"][1]
+    assert (tmp_path / "out" / "d1" / "cal.json").exists()
+
+
 def test_resume_keeps_done_logs_and_redoes_the_rest(logs, tmp_path):
     out = tmp_path / "out"
     first = calibrate_many(logs, out=out, jobs=1)
