@@ -287,3 +287,18 @@ def test_sap6_reference_names_the_accelerometer_reporting_gravity(shared_data, d
     assert stated["options"]["mag_mirrored"] is False
     # the fitted dip agrees with the model's within the allowance (measured 0.6-0.9°)
     assert abs(stated["dip_deg"] - ref.dip_deg) < DIP_ALLOWANCE_DEG
+
+
+def test_cli_field_prints_the_model(tmp_path):
+    """``fieldcal field``: what to expect where the device is, the same numbers as the library,
+    a southern place with its minus sign, a bad one in one line."""
+    ref = expected_field((-33.9, 151.2, 50.0), DAY)
+    args = ["field", "--location", "-33.9,151.2,50", "--date", DAY]
+    text = CliRunner().invoke(cli, args)
+    assert text.exit_code == 0, text.output
+    assert f"{ref.dip_deg:+.2f}°" in text.output and f"{ref.intensity / 1000:.3f} µT" in text.output
+    assert f"{abs(ref.declination_deg):.2f}° east" in text.output
+    doc = json.loads(CliRunner().invoke(cli, [*args, "--json"]).output)
+    assert doc == pytest.approx({k: getattr(ref, k) for k in doc}) and doc["model"] == "WMM2025"
+    bad = CliRunner().invoke(cli, ["field", "--location", "95,0"])
+    assert bad.exit_code == 2 and bad.stderr.strip().startswith("Error: location '95,0'")

@@ -1159,6 +1159,36 @@ def capture(
     _finish(cal, summary_shown=not quiet)
 
 
+# ----------------------------------------------------------------------------- field
+@cli.command()
+@click.option(
+    "--location",
+    required=True,
+    metavar="LAT,LON[,ALT_M]",
+    help="Decimal degrees (north and east positive) and metres above the WGS 84 ellipsoid.",
+)
+@click.option("--date", metavar="YYYY-MM-DD", help="The date (default: today).")
+@click.option("--json", "as_json", is_flag=True, help="Print the values as JSON.")
+def field(location: str, date: str | None, as_json: bool) -> None:
+    """The Earth's magnetic field expected at --location (World Magnetic Model): dip,
+    intensity and declination with their uncertainties, as calibrate --location uses them."""
+    ref = _lazy(".reference").expected_field(location, date)
+    if as_json:
+        click.echo(json.dumps(dataclasses.asdict(ref), indent=2))
+        return
+    east = "east" if ref.declination_deg >= 0 else "west"
+    click.echo(
+        f"{ref.model} at {ref.place}, {ref.altitude_m:g} m, on {ref.date}:\n"
+        f"  dip (inclination)  {ref.dip_deg:+.2f}° ± {ref.dip_std_deg:.2f}° "
+        "(positive below the horizon)\n"
+        f"  total intensity    {ref.intensity / 1000:.3f} µT ± {ref.intensity_std / 1000:.3f} "
+        f"({ref.intensity:.0f} nT)\n"
+        f"  declination        {abs(ref.declination_deg):.2f}° {east} ± "
+        f"{ref.declination_std_deg:.2f}° (true heading = magnetic heading "
+        f"{'+' if ref.declination_deg >= 0 else '-'} {abs(ref.declination_deg):.2f}°)"
+    )
+
+
 # ----------------------------------------------------------------------------- plan
 @cli.command()
 @click.argument("cal_json", type=click.Path())
