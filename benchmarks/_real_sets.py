@@ -35,17 +35,20 @@ from numpy.typing import NDArray
 
 import fieldcal
 from fieldcal.geometry.frames import parse_axes
+from fieldcal.gyro import GyroFit, fit_gyro
 from fieldcal.logs import Log, load_log, poses_from_log
 
 __all__ = [
     "DATA",
     "LOADERS",
     "SAP6_RUNS",
+    "ImucalTurns",
     "RealSet",
     "SplitHalf",
     "ck_acc_log",
     "icm20948_session3",
     "imu_tk",
+    "imucal_turns",
     "load",
     "sap6",
     "split_half",
@@ -143,6 +146,55 @@ LOADERS: dict[str, Callable[..., RealSet]] = {
     "ck-acc_log": ck_acc_log,
     **{f"sap6-{run}": (lambda root=DATA, run=run: sap6(run, root)) for run in SAP6_RUNS},
 }
+
+
+@dataclass(frozen=True)
+class ImucalTurns:
+    """imucal's annotated session for the gyroscope: time (s, at 204.8 Hz), raw rates,
+    the rests at both ends of the turns of 360° about x, y and z (row ranges, 6), and imucal's
+    own Ferraris calibration (``K_g``, ``R_g``, ``b_g``) from ``reference_outputs``."""
+
+    time: Array
+    gyro: Array
+    poses: list[tuple[int, int]]
+    reference: dict[str, Any]
+
+    def fit(self) -> GyroFit:
+        """The gyroscope fit on the three turns: each ends where it began (rotation the
+        identity, 0.5° per axis), ±2000 °/s part (16.4 counts per °/s); only the scale along
+        each turn's axis is determined (``allow_partial``)."""
+        n = len(self.poses)
+        return fit_gyro(
+            self.time,
+            self.gyro,
+            self.poses,
+            np.broadcast_to(np.eye(3), (n, 3, 3)),
+            rotation_cov=np.broadcast_to(np.eye(3) * np.radians(0.5) ** 2, (n, 3, 3)),
+            links=[0, 2, 4],
+            gain_guess=16.4 * np.degrees(1.0),
+            allow_partial=True,
+        )
+
+
+def imucal_turns(root: Path = DATA) -> ImucalTurns:
+    """The rests are found from the gyroscope: the rows at each end of a turn where the rate,
+    smoothed over 9 samples, is within 20 counts of the still rate, less 5 rows of margin."""
+    import pandas as pd
+
+    folder = root / "imucal"
+    d = pd.read_csv(folder / "annotated_session.csv").sort_values("samples")
+    ref = json.loads((folder / "reference_outputs" / "example_cal.json").read_text())
+    g = d[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(float)
+    t = d["samples"].to_numpy(float) / 204.8
+    part = d["part"].to_numpy()
+    still = np.median(g[d["part"].str.endswith(("_p", "_a")).to_numpy()], axis=0)
+    poses = []
+    for name in ("x_rot", "y_rot", "z_rot"):
+        rows = np.flatnonzero(part == name)
+        quiet = np.convolve(np.linalg.norm(g[rows] - still, axis=1), np.ones(9) / 9, "same") < 20
+        first, last = int(np.argmin(quiet)), len(rows) - int(np.argmin(quiet[::-1]))
+        poses += [(rows[0], rows[0] + first - 5), (rows[0] + last + 5, rows[-1] + 1)]
+    return ImucalTurns(t, g, poses, ref)
 
 
 def load(name: str, root: Path = DATA) -> RealSet:

@@ -23,7 +23,6 @@ path) and the ICM-20948 sessions (joint calibration's rotations, 27 Hz assumed).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 import warnings
@@ -34,6 +33,7 @@ from numpy.typing import NDArray
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _real_sets import imucal_turns
 from _report import pin_blas_threads, stamp, write_section
 
 import fieldcal
@@ -121,33 +121,11 @@ def simulated(n: int) -> dict[str, object]:
 
 # ----------------------------------------------------------------------------- real data
 def imucal() -> dict[str, object]:
-    import pandas as pd
-
-    folder = DATA / "imucal"
-    d = pd.read_csv(folder / "annotated_session.csv").sort_values("samples")
-    ref = json.loads((folder / "reference_outputs" / "example_cal.json").read_text())
-    g = d[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(float)
-    t = d["samples"].to_numpy(float) / 204.8
-    part = d["part"].to_numpy()
-    still = np.median(g[d["part"].str.endswith(("_p", "_a")).to_numpy()], axis=0)
-    poses = []
-    for name in ("x_rot", "y_rot", "z_rot"):
-        rows = np.flatnonzero(part == name)
-        quiet = np.convolve(np.linalg.norm(g[rows] - still, axis=1), np.ones(9) / 9, "same") < 20
-        first, last = int(np.argmin(quiet)), len(rows) - int(np.argmin(quiet[::-1]))
-        poses += [(rows[0], rows[0] + first - 5), (rows[0] + last + 5, rows[-1] + 1)]
+    turns = imucal_turns(DATA)
     start = time.perf_counter()
-    fit = fit_gyro(
-        t,
-        g,
-        poses,
-        np.broadcast_to(np.eye(3), (6, 3, 3)),
-        rotation_cov=np.broadcast_to(np.eye(3) * np.radians(0.5) ** 2, (6, 3, 3)),
-        links=[0, 2, 4],
-        gain_guess=16.4 * np.degrees(1.0),
-        allow_partial=True,
-    )
+    fit = turns.fit()
     seconds = time.perf_counter() - start
+    ref, poses = turns.reference, turns.poses
     ferraris = np.array(ref["K_g"]) @ np.array(ref["R_g"])
     return {
         "fit": fit,

@@ -3,9 +3,10 @@ determine, the simulated gyroscope's truth, and real recordings."""
 
 from __future__ import annotations
 
-import json
 import re
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,9 @@ from fieldcal.gyro import GAIN_NAMES, effective_time, fit_gyro, integrate, rotat
 from fieldcal.methods.mle.uncertainty import pose_rotation_covariance
 from fieldcal.simulation.continuous import simulate_continuous
 from fieldcal.simulation.device import MEMS, Device
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from _real_sets import imucal_turns  # the loader the benchmark uses too
 
 UP = np.array([0.0, 0.0, -1.0])  # the accelerometer's reference (specific force) in NED
 
@@ -302,49 +306,15 @@ def test_a_segment_the_gyroscope_never_saw_is_rejected(session):
     _within(fit, sim.gyro_truth)
 
 
-def test_a_fifteen_pose_session_fits_well_under_a_second():
-    import time
-
-    sim = simulate_continuous("paper", seed=3)
-    cal = _calibrate(sim.session.accel, sim.session.mag)
-    cov = pose_rotation_covariance(cal)
-    t, g = _gyro(sim)
-    fit_gyro(t, g, sim.segments, cal.rotations, rotation_cov=cov)  # warm caches
-    start = time.perf_counter()
-    fit_gyro(t, g, sim.segments, cal.rotations, rotation_cov=cov)
-    assert time.perf_counter() - start < 0.5
-
-
 # ----------------------------------------------------------------------------- real data
 def test_imucal_full_turns_give_the_ferraris_scale(shared_data):
     """imucal's annotated session: three turns of 360° on a table (about x, y, z, each axis
     up). A full turn ends where it began, so the rotations are the identity and only the
     scale along each turn's axis is determined; imucal's Ferraris fit divides the integrated
     raw rate by the known 2π instead, which also gives the axes' misalignment."""
-    pd = pytest.importorskip("pandas")
-    folder = shared_data("imucal")
-    d = pd.read_csv(folder / "annotated_session.csv").sort_values("samples")
-    ref = json.loads((folder / "reference_outputs" / "example_cal.json").read_text())
-    g = d[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(float)
-    t = d["samples"].to_numpy(float) / 204.8
-    part = d["part"].to_numpy()
-    still = np.median(g[d["part"].str.endswith(("_p", "_a")).to_numpy()], axis=0)
-    poses = []
-    for name in ("x_rot", "y_rot", "z_rot"):  # the rests at both ends of each turn
-        rows = np.flatnonzero(part == name)
-        quiet = np.convolve(np.linalg.norm(g[rows] - still, axis=1), np.ones(9) / 9, "same") < 20
-        first, last = int(np.argmin(quiet)), len(rows) - int(np.argmin(quiet[::-1]))
-        poses += [(rows[0], rows[0] + first - 5), (rows[0] + last + 5, rows[-1] + 1)]
-    fit = fit_gyro(
-        t,
-        g,
-        poses,
-        np.broadcast_to(np.eye(3), (6, 3, 3)),
-        rotation_cov=np.broadcast_to(np.eye(3) * np.radians(0.5) ** 2, (6, 3, 3)),
-        links=[0, 2, 4],
-        gain_guess=16.4 * np.degrees(1.0),  # a ±2000 °/s part: 16.4 counts per °/s
-        allow_partial=True,
-    )
+    pytest.importorskip("pandas")
+    turns = imucal_turns(shared_data("imucal").parent)
+    fit, ref = turns.fit(), turns.reference
     ferraris = np.abs(np.diag(np.array(ref["K_g"]) @ np.array(ref["R_g"]))) * np.degrees(1.0)
     assert {"gyro.gain[0,0]", "gyro.gain[1,1]"} <= set(fit.observable)
     assert "gyro.gain[0,1]" not in fit.observable  # a full turn hides its axis' tilt
