@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .api import calibrate
-from .calibration import Calibration, ParameterCovariance, SensorCalibration
+from .calibration import Calibration, ParameterCovariance
 from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .geometry.rotations import hat, rotation_angle_deg
@@ -347,7 +347,7 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
     """``cal`` with the gyroscope of ``fit``: its parameters, their covariance beside the
     others' (no correlation kept), the motion segments and how it was fitted."""
     assert log.gyro is not None  # the readings it was fitted to
-    sensor = SensorCalibration(gain=fit.gain, bias=fit.bias, noise_cov=fit.noise_cov)
+    sensor = fit.sensor
     covariance = cal.covariance
     if covariance is not None:
         n, m = len(covariance.names), len(fit.covariance.names)
@@ -358,7 +358,7 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
     segments = []
     for (first, last), residual in zip(fit.segments, fit.segment_residual_deg, strict=True):
         # the turn the calibrated gyroscope integrates over the segment
-        turn = integrate(time[first : last + 1], fit.correct(log.gyro[first : last + 1]))
+        turn = integrate(time[first : last + 1], sensor.correct(log.gyro[first : last + 1]))
         segments.append(
             {
                 "start": int(log.index[first]),

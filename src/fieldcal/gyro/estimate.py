@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtrc, chdtri, fdtrc
 
 from .._frozen import ArrayDataclass, frozen_array
-from ..calibration import ParameterCovariance
+from ..calibration import ParameterCovariance, SensorCalibration
 from ..errors import InputError
 from ..geometry.rotations import hat, quaternion_to_matrix
 from ..stats.poses import power_of_two
@@ -192,14 +192,15 @@ class GyroFit(ArrayDataclass):
         """Standard error of each bias entry."""
         return np.array([self.covariance.std(n) for n in BIAS_NAMES])
 
+    @property
+    def sensor(self) -> SensorCalibration:
+        """The gyroscope as a calibration's sensor (``cal.gyro``): gain, bias, noise."""
+        return SensorCalibration(gain=self.gain, bias=self.bias, noise_cov=self.noise_cov)
+
     def correct(self, raw: ArrayLike) -> Array:
-        """Raw readings (..., 3) → body-frame rate in rad/s, ``gain⁻¹ (raw − bias)``."""
-        x = np.asarray(raw, dtype=float)
-        if x.shape[-1:] != (3,):
-            raise ValueError(f"raw readings must have shape (..., 3), got {x.shape}")
-        flat = np.linalg.solve(self.gain, (x - self.bias).reshape(-1, 3).T).T
-        out: Array = np.asarray(flat, dtype=float).reshape(x.shape)
-        return out
+        """Raw readings (..., 3) → body-frame rate in rad/s, ``gain⁻¹ (raw − bias)``
+        (:meth:`SensorCalibration.correct`)."""
+        return self.sensor.correct(raw)
 
 
 # ----------------------------------------------------------------------------- SO(3) pieces
