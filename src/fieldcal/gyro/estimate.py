@@ -38,6 +38,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import block_diag
 from scipy.special import chdtrc, chdtri, fdtrc
 
 from .._frozen import ArrayDataclass, frozen_array
@@ -516,9 +517,7 @@ class _Whitening:
         seg = np.linalg.solve(self.seg_chol, ev.J.reshape(m * d, n_params))
         n = self.prior_chol.shape[0]
         prior = np.zeros((3 * n, n_params))
-        inv = np.linalg.inv(self.prior_chol)
-        for i in range(n):
-            prior[3 * i : 3 * i + 3, 9 + 3 * i : 12 + 3 * i] = inv[i]
+        prior[:, 9:] = block_diag(*np.linalg.inv(self.prior_chol))  # each pose's own bias
         return np.vstack([seg, prior])
 
 
@@ -1138,8 +1137,7 @@ def fit_gyro(
     # the named parameters' map: dK = −K dM K (row-major), bias = Σ w_i b_i
     L = np.zeros((12, full.n_params))
     L[:9, :9] = -np.kron(K, K.T)
-    for i in range(n_poses):
-        L[9:, 9 + 3 * i : 12 + 3 * i] = weights[i] * np.eye(3)
+    L[9:, 9:] = np.kron(weights[None, :], np.eye(3))
     if restrict is None:
         Cx = np.linalg.inv(J.T @ J)
     else:

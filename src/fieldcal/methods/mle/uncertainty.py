@@ -210,8 +210,8 @@ def pose_rotation_covariance(
     ne = normal_equations(problem, state, residuals(problem, state))
     C, Uinv, Y, _ = global_covariance(ne)
     full = np.einsum("iag,gh,jbh->iajb", Y, C, Y)
-    for i in range(n):
-        full[i, :, i, :] += Uinv[i]
+    poses = np.arange(n)
+    full[poses, :, poses, :] += Uinv  # each pose's own block (shape (n, 3, 3))
     if ne.basis is not None:  # one sensor: the two tilt angles, back in the body frame
         full = np.einsum("ika,iajb,jlb->ikjl", ne.basis, full, ne.basis)
     out: Array = full.reshape(3 * n, 3 * n)
