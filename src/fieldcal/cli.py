@@ -497,11 +497,21 @@ _POSES_OPTION = click.option(
 )
 
 
-def _log_options(f: _Command) -> _Command:
+def _sensor_columns(f: _Command) -> _Command:
+    """``--accel-cols``, ``--mag-cols``, ``--gyro-cols``: every command that reads a log."""
     options = [
         click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised)."),
         click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised)."),
         click.option("--gyro-cols", help="Gyroscope columns x,y,z (helps still detection)."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def _log_options(f: _Command) -> _Command:
+    options = [
+        _sensor_columns,
         click.option("--time-col", help="Time column (s; ms/us/ns recognised)."),
         click.option("--pose-col", help="Pose-label column: rows are grouped by it."),
         click.option("--drop-nan", is_flag=True, help="Drop rows with NaN/inf instead of failing."),
@@ -1072,9 +1082,7 @@ def _target_options(f: _Command) -> _Command:
 @_target_options
 @click.option("--plain", is_flag=True, help="One line per event instead of the live view.")
 @_fit_options
-@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
-@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
-@click.option("--gyro-cols", help="Gyroscope columns x,y,z (helps still detection).")
+@_sensor_columns
 @click.option("--time-col", help="Time column (s; ms/us/ns recognised); default: arrival time.")
 @click.option("--decimal", type=click.Choice([".", ","]), help="Decimal mark of the numbers.")
 @_detect_options
@@ -1263,9 +1271,7 @@ def _unit(text: str | None) -> str | float | None:
 @click.option("--accel-unit", help="Raw accelerometer unit: g, mg, m/s^2, or m/s^2 per count.")
 @click.option("--gyro-unit", help="Raw gyroscope unit: deg/s, rad/s, or rad/s per count.")
 @click.option("--rate", type=_POSITIVE, help="Sample rate in Hz when there is no time column.")
-@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
-@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
-@click.option("--gyro-cols", help="Gyroscope columns x,y,z (default: recognised).")
+@_sensor_columns
 @click.option("--time-col", help="Time column (s; ms/us/ns recognised).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 @_force
