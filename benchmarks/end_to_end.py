@@ -6,7 +6,11 @@ The log is the seed paper's Table 1 session as a continuous 100 Hz log
 (``fieldcal simulate --continuous``) with its 15 rests lengthened to make about ``--rows`` rows
 (10 columns: t, ax..az, gx..gz, mx..mz). Wall time and peak resident memory (``wait4``) of each
 process, medians over ``--repeat`` runs taken in turn (one run of each command, then the next
-round), so a busy machine slows every command alike.
+round: an A/B loop, so a busy machine slows every command alike). The rows "(numpy parser)"
+run the same command with pyarrow's CSV reader and bulk formatting switched off
+(``ARROW_MIN_BYTES`` / ``ARROW_MIN_ROWS``): the default path as it was before them.
+``--cpu K`` pins every process to CPU K (pyarrow's threads then share one core, as fieldcal's
+own work does).
 
     python benchmarks/end_to_end.py                   # 10^6 rows, 5 rounds, docs updated
     python benchmarks/end_to_end.py --rows 10000000 --repeat 1 --no-docs
@@ -16,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -37,22 +42,38 @@ PYARROW_READ_WRITE = (
 )
 
 
+MAKE_LOG = """
+import sys
+from fieldcal.simulation.continuous import simulate_continuous
+per_pose = max(int(sys.argv[2]) // 15, 50)
+sim = simulate_continuous("paper", seed=1, samples=(int(0.97 * per_pose), per_pose))
+sim.write_csv(sys.argv[1])
+print(len(sim.columns["t"]))
+"""
+
+#: The default path with pyarrow's reader and bulk formatting off: ``python -c NUMPY_ONLY ...``
+#: takes the command line's arguments.
+NUMPY_ONLY = (
+    "import fieldcal.logs.text as t, fieldcal.logs.apply as a; t.ARROW_MIN_BYTES = 1 << 62; "
+    "a.ARROW_MIN_ROWS = 1 << 62; from fieldcal.cli import main; main()"
+)
+
+
 def make_log(path: Path, rows: int) -> int:
     """The Table 1 session as a continuous 100 Hz log of about ``rows`` rows: 15 still poses
     each about ``rows / 15`` samples long, with motion between them (as the issue's enlarged
-    ``simulate --continuous`` log: still detection finds 15 poses). Returns the rows written."""
-    from fieldcal.simulation.continuous import simulate_continuous
-
-    per_pose = max(rows // 15, 50)
-    sim = simulate_continuous("paper", seed=1, samples=(int(0.97 * per_pose), per_pose))
-    sim.write_csv(str(path))
-    return len(sim.columns["t"])
+    ``simulate --continuous`` log: still detection finds 15 poses). Made in a process of its
+    own (a child forked from a large parent reports the parent's peak memory as its own).
+    Returns the rows written."""
+    argv = [sys.executable, "-c", MAKE_LOG, str(path), str(rows)]
+    return int(subprocess.run(argv, capture_output=True, text=True, check=True).stdout)
 
 
-def run(argv: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MB) of one process."""
+def run(argv: list[str], cpu: int | None = None) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MB) of one process (on CPU ``cpu`` alone if given)."""
+    pin = None if cpu is None else (lambda: os.sched_setaffinity(0, {cpu}))
     start = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, preexec_fn=pin)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -60,6 +81,38 @@ def run(argv: list[str]) -> tuple[float, float]:
     if proc.returncode not in (0, 3):
         raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {err.strip()}")
     return wall, usage.ru_maxrss / 1024
+
+
+READ_AB = """
+import json, sys, time
+import numpy as np, pyarrow.csv
+import fieldcal.logs.text as text
+from fieldcal.logs.readers import read_table
+def fieldcal_read(arrow):
+    text.ARROW_MIN_BYTES = 0 if arrow else 1 << 62
+    read_table(sys.argv[1])
+calls = {
+    "pyarrow.csv.read_csv": lambda: pyarrow.csv.read_csv(sys.argv[1]),
+    "fieldcal read_table": lambda: fieldcal_read(True),
+    "fieldcal read_table (numpy parser)": lambda: fieldcal_read(False),
+}
+times = {name: [] for name in calls}
+for _ in range(int(sys.argv[2])):
+    for name, call in calls.items():
+        start = time.perf_counter()
+        call()
+        times[name].append(time.perf_counter() - start)
+print(json.dumps({name: float(np.median(t)) for name, t in times.items()}))
+"""
+
+
+def read_ab(path: Path, repeat: int, cpu: int | None) -> dict[str, float]:
+    """Median seconds of pyarrow's read and fieldcal's (either parser), taken in turn in one
+    process (imports done before the first round)."""
+    pin = None if cpu is None else (lambda: os.sched_setaffinity(0, {cpu}))
+    argv = [sys.executable, "-c", READ_AB, str(path), str(repeat)]
+    out = subprocess.run(argv, capture_output=True, text=True, check=True, preexec_fn=pin)
+    return json.loads(out.stdout)
 
 
 def breakdown(path: Path) -> dict[str, float]:
@@ -88,8 +141,6 @@ print(json.dumps({{"import fieldcal": t1 - t0, "read_table": t2 - t1,
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout
-    import json
-
     return json.loads(out)
 
 
@@ -97,13 +148,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, default=1_000_000)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--cpu", type=int, default=None, help="pin every process to this CPU")
+    parser.add_argument("--log", type=Path, default=None, help="keep the log here (made once)")
     parser.add_argument("--no-docs", action="store_true", help="print only")
     args = parser.parse_args()
-    fieldcal_cmd = [sys.executable, "-m", "fieldcal.cli"]
+    fieldcal_cmd = [sys.executable, "-m", "fieldcal"]
+    numpy_cmd = [sys.executable, "-c", NUMPY_ONLY]
     with tempfile.TemporaryDirectory(prefix="fieldcal-e2e-") as folder:
         tmp = Path(folder)
-        log = tmp / "big.csv"
-        rows = make_log(log, args.rows)
+        log = args.log or tmp / "big.csv"
+        # (a log made by an earlier run with the same --rows is read again)
+        rows = sum(1 for _ in log.open("rb")) - 1 if log.exists() else make_log(log, args.rows)
         size_mb = log.stat().st_size / 1e6
         arrays_mb = rows * len(COLUMNS) * 8 / 1e6
         cal = tmp / "cal.json"
@@ -113,11 +168,18 @@ def main() -> None:
             "fieldcal calibrate": [
                 *fieldcal_cmd, "calibrate", str(log), "-o", str(tmp / "c.json"), "-q", "--force"
             ],
+            "fieldcal calibrate (numpy parser)": [
+                *numpy_cmd, "calibrate", str(log), "-o", str(tmp / "c.json"), "-q", "--force"
+            ],
             "pyarrow read + write_csv": [
                 sys.executable, "-c", PYARROW_READ_WRITE, str(log), str(tmp / "pa.csv")
             ],
             "fieldcal apply": [
                 *fieldcal_cmd, "apply", str(cal), str(log), "-o", str(tmp / "out.csv"), "-q",
+                "--force",
+            ],
+            "fieldcal apply (numpy parser, repr)": [
+                *numpy_cmd, "apply", str(cal), str(log), "-o", str(tmp / "out.csv"), "-q",
                 "--force",
             ],
         }  # fmt: skip
@@ -127,10 +189,13 @@ def main() -> None:
                 "--force",
             ]  # fmt: skip
         times: dict[str, list[tuple[float, float]]] = {name: [] for name in commands}
+        loads = [os.getloadavg()[0]]
         for _ in range(args.repeat):
             for name, argv in commands.items():
-                times[name].append(run(argv))
+                times[name].append(run(argv, args.cpu))
+            loads.append(os.getloadavg()[0])
         steps = breakdown(log)
+        reads = read_ab(log, args.repeat, args.cpu)
 
     def median(name: str, k: int) -> float:
         return float(np.median([t[k] for t in times[name]]))
@@ -139,13 +204,17 @@ def main() -> None:
     read_write = median("pyarrow read + write_csv", 0)
     baseline = {
         "fieldcal calibrate": ("pyarrow.csv.read_csv", read),
+        "fieldcal calibrate (numpy parser)": ("pyarrow.csv.read_csv", read),
         "fieldcal apply": ("pyarrow read + write_csv", read_write),
+        "fieldcal apply (numpy parser, repr)": ("pyarrow read + write_csv", read_write),
         "fieldcal report": ("pyarrow.csv.read_csv", read),
     }
+    pinned = "every process pinned to one CPU" if args.cpu is not None else "not pinned"
     lines = [
         f"A {rows:,}-row, {len(COLUMNS)}-column CSV with 15 still poses ({size_mb:.0f} MB; "
         f"the parsed float64 arrays are {arrays_mb:.0f} MB), each command in its own process, "
-        f"medians of {args.repeat} rounds:",
+        f"medians of {args.repeat} rounds ({pinned}; 1-minute load average "
+        f"{min(loads):.1f}-{max(loads):.1f} over the rounds on this 2-core machine):",
         "",
         "| process | wall (s) | peak RSS (MB) | wall / its pyarrow baseline |",
         "|---|---|---|---|",
@@ -157,6 +226,27 @@ def main() -> None:
         lines.append(f"| {name} | {median(name, 0):.2f} | {median(name, 1):.0f} | {ratio} |")
     lines += [
         "",
+        "pyarrow's CSV reader and bulk formatting against numpy's parser and `repr` in the same "
+        "rounds: `calibrate` "
+        f"{median('fieldcal calibrate (numpy parser)', 0) / median('fieldcal calibrate', 0):.2f}x"
+        " as fast, `apply` "
+        f"{median('fieldcal apply (numpy parser, repr)', 0) / median('fieldcal apply', 0):.2f}x"
+        " as fast. pyarrow is a main dependency for this (loaded on first use, in "
+        "`logs/arrow_parser.py`: `import fieldcal` and `fieldcal --version` do not load it; "
+        "files under 4 MiB keep numpy's parser, whose import is cheaper than pyarrow's).",
+    ]
+    first = reads["pyarrow.csv.read_csv"]
+    lines += [
+        "",
+        f"Reading alone, in one process, the three readers in turn for {args.repeat} rounds "
+        "(medians):",
+        "",
+        "| reader | seconds | / pyarrow.csv.read_csv |",
+        "|---|---|---|",
+        *(f"| {name} | {t:.3f} | {t / first:.2f}x |" for name, t in reads.items()),
+    ]
+    lines += [
+        "",
         "Where `calibrate`'s time goes (one fresh process; `load_log` reads the file again):",
         "",
         "| step | seconds |",
@@ -166,9 +256,7 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     if not args.no_docs:
-        command = "python benchmarks/end_to_end.py" + (
-            f" --rows {args.rows}" if args.rows != 1_000_000 else ""
-        )
+        command = " ".join(["python benchmarks/end_to_end.py", *sys.argv[1:]])
         write_section("end-to-end", f"## A large log end to end\n\n{stamp(command)}\n{text}")
 
 

@@ -1,5 +1,5 @@
 """Planning benchmark: how many poses does a user need to reach a target when following the
-planner (``fieldcal.trust.plan``), random orientations, or the classic six-face protocol?
+planner (``fieldcal.planning.next_pose``), random orientations, or the classic six-face protocol?
 
 For each simulated device (truth drawn as in Table 1 of the seed paper with a realistic dip,
 noise and pose-level noise, below) and each strategy, poses are added one at a time; from the
@@ -44,7 +44,7 @@ import fieldcal
 from fieldcal.errors import InputError
 from fieldcal.geometry.orientations import CANDIDATES
 from fieldcal.geometry.rotations import exp_so3, random_rotations
-from fieldcal.trust.plan import Targets, first_poses, floor, plan_poses
+from fieldcal.planning.next_pose import Targets, first_poses, floor, plan_poses
 
 Array = NDArray[np.float64]
 

@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
-from hypothesis import settings
+from hypothesis import HealthCheck, settings
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -28,6 +28,19 @@ def shared_data():
     return shared_data_dir
 
 
+@pytest.fixture(autouse=True)
+def _work_in_a_temporary_folder(tmp_path, monkeypatch):
+    """Every test runs in its own empty folder: a command's default output (``cal.json``) never
+    lands in the checkout, and no test sees another's."""
+    monkeypatch.chdir(tmp_path)
+
+
 # Property tests are part of CI: draw the same examples on every run.
-settings.register_profile("fieldcal", derandomize=True, deadline=None)
+# The autouse temporary folder is shared by a property test's examples, which is what we want.
+settings.register_profile(
+    "fieldcal",
+    derandomize=True,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 settings.load_profile("fieldcal")

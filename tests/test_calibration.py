@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -123,7 +124,7 @@ def test_json_round_trip_is_lossless():
     assert back == cal
     assert back.to_json() == text
     doc = json.loads(text)
-    assert doc["schema"] == "fieldcal.calibration" and doc["schema_version"] == 2
+    assert doc["schema"] == "fieldcal.calibration" and doc["schema_version"] == 4
     assert doc["fieldcal_version"] == fieldcal.__version__
     assert doc["method"] == "mle" and doc["options"]["gamma"] == 1e-4
     assert doc["created"].startswith("20")
@@ -335,6 +336,31 @@ def test_nothing_downstream_sees_a_non_finite_or_singular_matrix():
                 assert exports.export(cal, fmt)
             except ValueError as exc:  # a format may refuse what it cannot hold, in one line
                 assert "\n" not in str(exc)
+
+
+@pytest.mark.parametrize(
+    ("sensor", "part", "entry", "value", "message"),
+    [
+        ("accel", "gain", (0, 0), 1e300, "accel.gain[0,0] is 1e+300, beyond the range"),
+        ("mag", "gain", (1, 2), -1e200, "mag.gain[1,2] is -1e+200, beyond the range"),
+        ("accel", "gain", None, 1e-300, "accel.gain's smallest scale is 1e-300, below 1e-200"),
+        ("mag", "bias", (0,), 1e308, "mag.bias[0] is 1e+308, beyond the range"),
+        ("mag", "noise_cov", (2, 0), 1e308, "mag.noise_cov has an entry beyond 1e+300"),
+    ],
+)
+def test_absurd_values_are_refused_on_load_naming_the_key(sensor, part, entry, value, message):
+    """apply, export, report, plan and store add read files through from_json."""
+    doc = _doc()
+    if entry is None:  # a uniformly tiny gain: well conditioned, its inverse beyond the range
+        doc[sensor][part] = (value * np.eye(3)).tolist()
+    else:
+        array = np.array(doc[sensor][part], dtype=float)
+        array[entry] = value
+        doc[sensor][part] = array.tolist()
+    with pytest.raises(ValueError, match=re.escape(message)) as info:
+        Calibration.from_json(json.dumps(doc))
+    assert "\n" not in str(info.value)
+    assert Calibration.from_json(json.dumps(_doc()))  # the document as written loads
 
 
 @pytest.mark.parametrize("gravity", ["9.8", True, float("nan"), -1.0, 1e308, [9.8]])

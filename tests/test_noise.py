@@ -261,13 +261,15 @@ def test_one_long_still_recording_is_taken_whole():
 
 
 def _parse_yaml(text: str) -> dict[str, float]:
-    """Flat ``key: number  # comment`` lines, as Kalibr's imu.yaml holds them."""
+    """Flat ``key: number  # comment`` lines, as Kalibr's imu.yaml holds them (the one text
+    value, ``rostopic``, left out)."""
     out: dict[str, float] = {}
     for line in text.splitlines():
         body = line.split("#", 1)[0].strip()
         if body:
             key, value = body.split(":", 1)
-            out[key.strip()] = float(value)
+            if key.strip() != "rostopic":
+                out[key.strip()] = float(value)
     return out
 
 
@@ -306,6 +308,7 @@ def test_kalibr_yaml_keys_and_unit_conversions():
     except ImportError:
         return
     loaded = yaml.safe_load(si.kalibr_yaml())
+    assert loaded.pop("rostopic") == "/imu0"
     assert loaded == pytest.approx(a) and all(isinstance(v, float) for v in loaded.values())
 
 

@@ -96,3 +96,21 @@ def test_device_id_from_the_log(tmp_path):
     (device,) = fieldcal.Store(store).devices()
     assert fieldcal.Store(store).latest(device) == cal
     assert fieldcal.Store(store).add(cal).parent.name == device  # the library too
+
+
+def test_listing_a_device_calibrated_with_different_gravity_lists_it(cal, tmp_path):
+    """``store list ID`` lists every calibration; two made with different --gravity are not
+    compared (that failed: "different units"), and the row says so."""
+    store = fieldcal.Store(tmp_path)
+    store.add(_at(cal, "2026-01-01T00:00:00Z"), device="d2")
+    store.add(_at(cal.with_field_magnitudes(gravity=9.80665), "2026-02-01T00:00:00Z"), device="d2")
+    store.add(_at(cal.with_field_magnitudes(gravity=9.80665), "2026-03-01T00:00:00Z"), device="d2")
+    rows = store.drift("d2")
+    assert rows[1].since_previous is None and "different units" in rows[1].note
+    assert rows[2].since_previous is not None and rows[2].note == ""  # same units: compared
+    for command in ("list", "drift"):
+        result = CliRunner().invoke(cli, ["store", command, "d2", "--store", str(tmp_path)])
+        assert result.exit_code == 0, result.output
+        assert "3 calibrations" in result.output and "not compared" in result.output
+    with pytest.raises(InputError, match="sigmas must be a positive number"):
+        store.drift("d2", sigmas=0)

@@ -7,38 +7,46 @@
 
 Conventions are stated once in :mod:`fieldcal.geometry.frames` and ``docs/conventions.md``;
 the rooms of the package are described in ``docs/architecture.md``. Importing fieldcal loads
-numpy only: SciPy, matplotlib and pyarrow load when a function first needs them.
+no numerical module: each public name loads its module on first use (numpy with the first
+one), and SciPy, matplotlib and pyarrow load when a function first needs them.
 """
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 from typing import TYPE_CHECKING
 
-from . import metrics
+from . import _aliases
 from ._version import __version__
-from .api import calibrate
-from .calibration import (
-    Accuracy,
-    Calibration,
-    Diagnostics,
-    ParameterCovariance,
-    RejectedPose,
-    SensorCalibration,
-    Verdict,
-)
-from .errors import InputError
-from .methods import METHODS
-from .simulation.session import Session, simulate
-from .stats.poses import PoseStats, SensorStats, stats_from_means, summarize
+
+_aliases.install()
 
 if TYPE_CHECKING:
+    from . import metrics
+    from .api import calibrate
     from .batch import calibrate_many
+    from .calibration import (
+        Accuracy,
+        Calibration,
+        Diagnostics,
+        ParameterCovariance,
+        Reason,
+        RejectedPose,
+        SensorCalibration,
+        Verdict,
+    )
+    from .errors import InputError
     from .logs import Log
+    from .methods import METHODS
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
+    from .planning.next_pose import PlannedPose, plan_poses
     from .reference import expected_field
+    from .simulation.session import Session, simulate
+    from .stats.pose_stats import PoseStats, SensorStats, stats_from_means, summarize
     from .store import Store
-    from .trust.plan import PlannedPose, Targets, plan_poses
+    from .trust.targets import Targets
 
 __all__ = [
     "METHODS",
@@ -50,6 +58,7 @@ __all__ = [
     "ParameterCovariance",
     "PlannedPose",
     "PoseStats",
+    "Reason",
     "RejectedPose",
     "SensorCalibration",
     "SensorStats",
@@ -72,8 +81,33 @@ __all__ = [
     "summarize",
 ]
 
-#: Public names imported on first use, keeping ``import fieldcal`` light.
+#: Public names imported on first use (PEP 562), so that ``import fieldcal`` and
+#: ``fieldcal --version`` load no numerical module: each name's module loads when the name is
+#: first used (``fieldcal.calibrate`` loads the calibration path, numpy with it; SciPy, pyarrow
+#: and matplotlib load later still, when a function first needs them).
 _LAZY = {
+    "calibrate": "fieldcal.api",
+    **dict.fromkeys(
+        (
+            "Accuracy",
+            "Calibration",
+            "Diagnostics",
+            "ParameterCovariance",
+            "Reason",
+            "RejectedPose",
+            "SensorCalibration",
+            "Verdict",
+        ),
+        "fieldcal.calibration",
+    ),
+    "InputError": "fieldcal.errors",
+    "METHODS": "fieldcal.methods",
+    "Session": "fieldcal.simulation.session",
+    "simulate": "fieldcal.simulation.session",
+    **dict.fromkeys(
+        ("PoseStats", "SensorStats", "stats_from_means", "summarize"), "fieldcal.stats.pose_stats"
+    ),
+    "Targets": "fieldcal.trust.targets",
     "align": "fieldcal.methods.ellipsoid",
     "fit_ellipsoid": "fieldcal.methods.ellipsoid",
     # the log path: commands that never read a log (--version, --help, export) skip it
@@ -81,9 +115,8 @@ _LAZY = {
     "calibrate_log": "fieldcal.pipeline",
     "read_log": "fieldcal.pipeline",
     # experiment design: which pose to take next
-    "PlannedPose": "fieldcal.trust.plan",
-    "Targets": "fieldcal.trust.plan",
-    "plan_poses": "fieldcal.trust.plan",
+    "PlannedPose": "fieldcal.planning.next_pose",
+    "plan_poses": "fieldcal.planning.next_pose",
     "Store": "fieldcal.store",
     "calibrate_many": "fieldcal.batch",
     "expected_field": "fieldcal.reference",
@@ -91,8 +124,15 @@ _LAZY = {
 
 
 def __getattr__(name: str) -> object:
+    """A public name, or a subpackage (``fieldcal.metrics``, ``fieldcal.output``), on first use."""
     if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value  # later look-ups skip this function
+        return value
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'fieldcal' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -1,42 +1,82 @@
 """``fieldcal.calibrate``: validate the input, summarise the poses, run the method through the
 shared trust path, then express the result in the user's units and handedness.
 
+:func:`calibrate` takes the options as keywords (their defaults are the fields' of
+:class:`~fieldcal.settings.FitSettings` and :class:`~fieldcal.settings.TrustSettings`);
+:func:`calibrate_with` takes them as those settings objects (the log pipeline's way in). Either
+way they are checked once, here, with one line per problem.
+
 This module names no method: :mod:`fieldcal.methods` validates and dispatches.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 import functools
 import importlib
 import numbers
 from collections.abc import Callable, Mapping, Sequence
-from types import ModuleType
-from typing import TYPE_CHECKING, TypeAlias
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .calibration import Calibration
 from .errors import InputError
+from .limits import RANGE_TEXT, in_range
 from .methods import Method
 from .methods import get as get_method
-from .reference import DIP_ALLOWANCE_DEG, FieldReference, expected_field
-from .stats.noise import noise_covariance, per_sensor, pose_noise_value
-from .stats.poses import PoseStats, Samples, brief, summarize_scaled
+from .reference import FieldReference, expected_field
+from .settings import (
+    OPTIONS,
+    TARGET_OPTIONS,
+    DateSpec,
+    FitSettings,
+    LocationSpec,
+    NoiseSpec,
+    PoseNoiseSpec,
+    TrustSettings,
+)
+from .stats.noise_models import noise_covariance, per_sensor, pose_noise_value
+from .stats.pose_stats import PoseStats, Samples, brief, summarize_scaled
+from .stats.pose_temperature import pose_temperatures
 from .stats.scaling import normalise
+from .trust.handedness import decide as decide_handedness
+from .trust.targets import DEFAULT_TARGETS, Targets
 
 if TYPE_CHECKING:
     from threadpoolctl import ThreadpoolController
 
-__all__ = ["calibrate"]
+    from .likelihood.temperature import with_temperature_terms
+    from .trust.fitting import fit_trusted
+else:
 
-#: ``noise=``: a standard deviation (scalar or per axis) or a 3x3 covariance, for both sensors
-#: or per sensor (checked at run time by :func:`fieldcal.stats.noise.noise_covariance`).
-NoiseSpec: TypeAlias = ArrayLike | Mapping[str, ArrayLike | None]
-#: ``pose_noise=``: "auto", "none" or a standard deviation, for both sensors or per sensor.
-PoseNoiseSpec: TypeAlias = str | float | Mapping[str, str | float]
+    def with_temperature_terms(*args, **kwargs):
+        """The temperature terms' span rule and order test (:func:`fieldcal.likelihood.
+        temperature.with_temperature_terms`), imported on the first call (SciPy)."""
+        module = importlib.import_module(".likelihood.temperature", __package__)
+        return module.with_temperature_terms(*args, **kwargs)
+
+    def fit_trusted(*args, **kwargs):
+        """The shared trust path (:func:`fieldcal.trust.fitting.fit_trusted`), imported on the
+        first call: it needs SciPy, which ``import fieldcal`` does not load. The type checker
+        sees the real function, so every call is checked."""
+        return importlib.import_module(".trust.fitting", __package__).fit_trusted(*args, **kwargs)
+
+
+__all__ = [
+    "NoiseSpec",
+    "PoseNoiseSpec",
+    "calibrate",
+    "calibrate_with",
+    "check_targets",
+    "field_settings",
+    "targets_for",
+]
+
+#: The defaults of the keywords, from the option table (:mod:`fieldcal.settings`).
+_FIT, _TRUST = FitSettings(), TrustSettings()
 
 
 @functools.cache
@@ -46,6 +86,39 @@ def _blas() -> ThreadpoolController:
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
+
+
+# ----------------------------------------------------------------------------- checks
+@dataclass(frozen=True)
+class _Checked:
+    """The user's settings, checked once, and what follows from them.
+
+    ``fit`` and ``trust`` hold the values as given with ``robust`` a ``bool`` and
+    ``false_alarm`` a ``float``; ``trim`` is ``fit.trim`` decided (``None``: as ``robust``);
+    ``magnitudes`` the field magnitudes given (``None``: not given), ``fixed`` each sensor's
+    pose-level variance given (``None``: estimated), ``user_noise`` each sensor's per-sample
+    covariance given (raw units)."""
+
+    spec: Method
+    fit: FitSettings
+    trust: TrustSettings
+    trim: bool
+    reference: FieldReference | None
+    magnitudes: dict[str, float | None]
+    fixed: dict[str, float | None]
+    user_noise: dict[str, np.ndarray]
+    targets: Targets | None
+    options: Mapping[str, object]
+    on_progress: Callable[[str], None] | None
+
+    def provenance(self) -> dict[str, object]:
+        """How the fit was made, for ``cal.options``."""
+        return {
+            "body_frame": self.fit.body_frame,
+            "robust": self.fit.robust,
+            "false_alarm": self.trust.false_alarm,
+            "trim": self.trim,
+        }
 
 
 def _reference(location: object, date: object, allowance: object) -> FieldReference | None:
@@ -79,23 +152,114 @@ def _field_strength(value: object, reference: FieldReference | None) -> float | 
     return reference.intensity_in(unit)
 
 
-def _trust() -> ModuleType:
-    """The shared trust path, imported on first use: it needs SciPy, which ``import fieldcal``
-    does not load."""
-    return importlib.import_module(".trust.fitting", __package__)
+def field_settings(
+    fit: FitSettings, trust: TrustSettings
+) -> tuple[FieldReference | None, dict[str, float | None]]:
+    """The World Magnetic Model's field where the log was recorded (``trust.location``,
+    ``trust.date``; ``None`` without a location) and the field magnitudes given
+    (``{"accel": fit.gravity, "mag": fit.field_strength}``, ``"wmm"`` resolved; ``None``: not
+    given), each checked as :func:`calibrate_with` checks it, for a path that does not go
+    through it (the continuous-motion estimator, :func:`fieldcal.pipeline.run_log`).
+
+    Raises
+    ------
+    InputError
+        A date without a location, an allowance out of range, a magnitude that is not a
+        plausible number, or ``"wmm"`` without a location.
+    """
+    reference = _reference(trust.location, trust.date, trust.dip_allowance_deg)
+    magnitudes = {
+        "accel": _magnitude(fit.gravity, "gravity"),
+        "mag": _field_strength(fit.field_strength, reference),
+    }
+    return reference, magnitudes
+
+
+def check_targets(targets: object) -> Targets | None:
+    """``targets=`` checked: a :class:`~fieldcal.trust.targets.Targets` or ``None``.
+
+    Raises
+    ------
+    ValueError
+        In one line, naming what was given.
+    """
+    if targets is not None and not isinstance(targets, Targets):
+        raise ValueError(f"targets must be a fieldcal.Targets, got {brief(targets)}")
+    return targets
+
+
+def targets_for(targets: object, trust: TrustSettings) -> Targets | None:
+    """The verdict's targets: ``targets`` (``None``: :class:`~fieldcal.trust.targets.Targets`'
+    defaults) with the target options set in ``trust`` (``--target-tilt`` ...) in place of its
+    values.
+
+    Parameters
+    ----------
+    targets : Targets or None
+        The library's ``targets=``.
+    trust : TrustSettings
+        ``target_tilt``, ``target_heading``, ``target_norm``: each ``None`` or the value to use.
+
+    Returns
+    -------
+    Targets or None
+        ``None`` when neither gives any (the defaults).
+
+    Raises
+    ------
+    ValueError
+        ``targets`` is not a :class:`~fieldcal.trust.targets.Targets`, or a target is not a
+        positive number (one line each).
+    """
+    targets = check_targets(targets)
+    changes = {
+        OPTIONS[name].target: value
+        for name in TARGET_OPTIONS
+        if (value := getattr(trust, name)) is not None
+    }
+    if not changes:
+        return targets
+    try:
+        return dataclasses.replace(targets or DEFAULT_TARGETS, **changes)
+    except InputError as exc:  # the message names the option given, not the attribute
+        text = str(exc)
+        for name in TARGET_OPTIONS:
+            text = text.replace(f"Targets.{OPTIONS[name].target} ", f"{name} ")
+        raise InputError(text) from None
+
+
+def _check_flags(fit: FitSettings, on_progress: object) -> None:
+    """Check the switches of :func:`calibrate` and ``on_progress``, in one line each."""
+    if fit.body_frame not in ("accel", "mag"):
+        raise ValueError(f"body_frame must be 'accel' or 'mag', got {brief(fit.body_frame)}")
+    for flag, value in (("mag_mirrored", fit.mag_mirrored), ("robust", fit.robust)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{flag} must be True or False, got {brief(value)}")
+    if on_progress is not None and not callable(on_progress):
+        raise ValueError(
+            f"on_progress must be a function taking one line of text, got {brief(on_progress)}"
+        )
+
+
+def _check_trim(trim: object, robust: bool) -> bool:
+    """``trim`` as a bool (default: the same as ``robust``)."""
+    if trim is None:
+        return robust
+    if not isinstance(trim, (bool, np.bool_)):
+        raise ValueError(f"trim must be True or False, got {brief(trim)}")
+    return bool(trim)
 
 
 def _magnitude(value: object, name: str) -> float | None:
-    """A reference field's magnitude: a real number from 1e-150 to 1e150 (the gains are raw
-    units per unit of it, and their covariance must stay in floating-point range)."""
+    """A reference field's magnitude: a real number in :data:`fieldcal.limits.RANGE_TEXT` (the
+    gains are raw units per unit of it, and their covariance must stay in floating-point
+    range)."""
     if value is None:
         return None
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} must be a positive number, got {brief(value)}")
-    if not 1e-150 <= float(value) <= 1e150:
-        raise ValueError(
-            f"{name} must be a positive number from 1e-150 to 1e150, got {brief(value)}"
-        )
+    if not in_range(float(value)):
+        raise ValueError(f"{name} must be a positive number {RANGE_TEXT}, got {brief(value)}")
     return float(value)
 
 
@@ -113,50 +277,66 @@ def _user_noise(noise: object) -> dict[str, np.ndarray]:
     return {name: noise_covariance(v, name) for name, v in given.items() if v is not None}
 
 
-def _with_user_noise(
-    stats: PoseStats, given: Mapping[str, np.ndarray], scales: Mapping[str, float]
-) -> tuple[PoseStats, dict[str, str]]:
-    """Replace Eq. 7's covariance by the user's where given (in the readings' scaled units);
-    report each sensor's source."""
-    sources: dict[str, str] = {}
-    for name in stats.sensors:
-        value = given.get(name)
-        if value is not None:
-            stats = stats.replace(
-                **{name: dataclasses.replace(stats.sensor(name), cov=value / scales[name] ** 2)}
-            )
-            sources[name] = "user"
-        else:
-            sources[name] = "scatter" if stats.sensor(name).cov is not None else "residuals"
-    return stats, sources
+def _check(
+    fit: FitSettings,
+    trust: TrustSettings,
+    targets: object,
+    on_progress: Callable[[str], None] | None,
+    options: Mapping[str, object],
+) -> _Checked:
+    """Every setting of a calibration checked once, in one line each, before any work."""
+    spec = get_method(fit.method)
+    _check_flags(fit, on_progress)
+    goal = targets_for(targets, trust)
+    robust = bool(fit.robust)
+    if robust is not fit.robust:  # np.bool_: as bool (no copy in the common case)
+        fit = dataclasses.replace(fit, robust=robust)
+    trim = _check_trim(fit.trim, fit.robust)
+    alpha = _probability(trust.false_alarm, "false_alarm")
+    if type(trust.false_alarm) is not float:
+        trust = dataclasses.replace(trust, false_alarm=alpha)
+    g = _magnitude(fit.gravity, "gravity")
+    reference = _reference(trust.location, trust.date, trust.dip_allowance_deg)
+    h = _field_strength(fit.field_strength, reference)
+    spec.check_options(options)
+    pose_noise = per_sensor(fit.pose_noise, "pose_noise")
+    return _Checked(
+        spec=spec,
+        fit=fit,
+        trust=trust,
+        trim=trim,
+        reference=reference,
+        magnitudes={"accel": g, "mag": h},
+        fixed={s: pose_noise_value(v, s) for s, v in pose_noise.items()},
+        user_noise=_user_noise(fit.noise),
+        targets=goal,
+        options=options,
+        on_progress=on_progress,
+    )
 
 
-def _scaled_variance(variance: float | None, scale: float) -> float | None:
-    return None if variance is None else variance / scale**2
-
-
-def _continuous(accel: object, mag: object) -> bool:
-    return any(isinstance(x, np.ndarray) and x.ndim == 2 for x in (accel, mag) if x is not None)
-
-
+# ----------------------------------------------------------------------------- the call
 def calibrate(
     accel: Samples | None,
     mag: Samples | None = None,
-    method: str = "mle",
+    method: str = _FIT.method,
     *,
-    gravity: float | None = None,
-    field_strength: float | None = None,
-    noise: NoiseSpec | None = None,
-    pose_noise: PoseNoiseSpec = "auto",
-    robust: bool = True,
-    false_alarm: float = 0.01,
-    trim: bool | None = None,
-    body_frame: str = "accel",
-    mag_mirrored: bool = False,
-    location: str | Sequence[float] | None = None,
-    date: str | _dt.date | None = None,
-    dip_allowance_deg: float = DIP_ALLOWANCE_DEG,
+    gravity: float | None = _FIT.gravity,
+    field_strength: float | str | None = _FIT.field_strength,
+    noise: NoiseSpec | None = _FIT.noise,
+    pose_noise: PoseNoiseSpec = _FIT.pose_noise,
+    robust: bool = _FIT.robust,
+    false_alarm: float = _TRUST.false_alarm,
+    trim: bool | None = _FIT.trim,
+    body_frame: str = _FIT.body_frame,
+    mag_mirrored: bool = _FIT.mag_mirrored,
+    location: LocationSpec | None = _TRUST.location,
+    date: DateSpec | None = _TRUST.date,
+    dip_allowance_deg: float = _TRUST.dip_allowance_deg,
+    targets: Targets | None = None,
     on_progress: Callable[[str], None] | None = None,
+    time_ordered: bool = False,
+    temperature: Sequence[ArrayLike] | None = None,
     **options: object,
 ) -> Calibration:
     """Calibrate an accelerometer and a magnetometer together from static poses.
@@ -212,8 +392,17 @@ def calibrate(
         The local anomaly allowed beyond the uncertainties before the verdict warns that the
         fitted dip differs from the model's (default :data:`fieldcal.reference.
         DIP_ALLOWANCE_DEG`, 2°).
+    targets : Targets, optional
+        The accuracy the verdict asks for (:class:`fieldcal.Targets`: tilt, heading, norm;
+        defaults documented there): a predicted error beyond its target warns (``accuracy``),
+        beyond 5 times fails (``unusable``).
     on_progress : callable, optional
         Called with one line of text at each step of the robust fit (for progress displays).
+    time_ordered : bool
+        The poses are consecutive pieces of one motion, in time order: error bars widened for
+        the correlation measured between neighbours (:mod:`fieldcal.trust.correlation`).
+    temperature : sequence of arrays, optional
+        Each pose's temperatures (°C): biases in T (``docs/methods/temperature.md``).
     **options
         The method's own options (keyword-only parameters of its ``fit``), e.g. ``gamma`` for
         ``"greedy"``; an unknown one is a ``ValueError`` listing the known ones.
@@ -222,66 +411,84 @@ def calibrate(
     -------
     Calibration
         With ``verdict``, ``rejected``, ``accuracy`` and each sensor's ``pose_noise_std``.
-    """
-    spec = get_method(method)
-    if body_frame not in ("accel", "mag"):
-        raise ValueError(f"body_frame must be 'accel' or 'mag', got {brief(body_frame)}")
-    for flag, value in (("mag_mirrored", mag_mirrored), ("robust", robust)):
-        if not isinstance(value, (bool, np.bool_)):
-            raise ValueError(f"{flag} must be True or False, got {brief(value)}")
-    if on_progress is not None and not callable(on_progress):
-        raise ValueError(
-            f"on_progress must be a function taking one line of text, got {brief(on_progress)}"
-        )
-    if trim is None:
-        trim = bool(robust)
-    elif not isinstance(trim, (bool, np.bool_)):
-        raise ValueError(f"trim must be True or False, got {brief(trim)}")
-    alpha = _probability(false_alarm, "false_alarm")
-    g = _magnitude(gravity, "gravity")
-    reference = _reference(location, date, dip_allowance_deg)
-    h = _field_strength(field_strength, reference)
-    spec.check_options(options)
-    fixed = {s: pose_noise_value(v, s) for s, v in per_sensor(pose_noise, "pose_noise").items()}
-    user_noise = _user_noise(noise)
-    provenance = {
-        "body_frame": body_frame,
-        "mag_mirrored": bool(mag_mirrored),
-        "robust": bool(robust),
-        "false_alarm": alpha,
-        "trim": bool(trim),
-    }
 
+    Notes
+    -----
+    The defaults are the fields' of :class:`fieldcal.settings.FitSettings` and
+    :class:`~fieldcal.settings.TrustSettings` (the option table); :func:`calibrate_with` is the
+    same call with those objects.
+    """
+    fit = FitSettings(
+        method=method,
+        gravity=gravity,
+        field_strength=field_strength,
+        noise=noise,
+        pose_noise=pose_noise,
+        robust=robust,
+        trim=trim,
+        body_frame=body_frame,
+        mag_mirrored=mag_mirrored,
+    )
+    trust = TrustSettings(
+        location=location, date=date, dip_allowance_deg=dip_allowance_deg, false_alarm=false_alarm
+    )
+    return calibrate_with(
+        accel,
+        mag,
+        fit,
+        trust,
+        targets=targets,
+        method_options=options,
+        on_progress=on_progress,
+        time_ordered=time_ordered,
+        temperature=temperature,
+    )
+
+
+def calibrate_with(
+    accel: Samples | None,
+    mag: Samples | None,
+    fit: FitSettings = _FIT,
+    trust: TrustSettings = _TRUST,
+    *,
+    targets: Targets | None = None,
+    method_options: Mapping[str, object] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+    time_ordered: bool = False,
+    temperature: Sequence[ArrayLike] | None = None,
+) -> Calibration:
+    """:func:`calibrate` with its options as settings objects.
+
+    Parameters
+    ----------
+    accel, mag, targets, on_progress, time_ordered, temperature
+        As :func:`calibrate` takes them.
+    fit : FitSettings
+        ``method``, the reference magnitudes, the noise model, ``robust``, ``trim``,
+        ``body_frame``, ``mag_mirrored`` (the log pipeline's ``mag_axes``, ``accel_sign`` and
+        ``gyro`` are not read here).
+    trust : TrustSettings
+        ``location``, ``date``, ``dip_allowance_deg``, ``false_alarm`` and the target options
+        (``target_tilt`` ...: they replace the values of ``targets``, :func:`targets_for`).
+    method_options : mapping, optional
+        The method's own options (checked by its registry entry).
+
+    Returns
+    -------
+    Calibration
+    """
+    checked = _check(fit, trust, targets, on_progress, method_options or {})
     try:
         # The problems are small (3x3 blocks, a 22x22 system): threaded BLAS only adds
         # contention, and two processes calibrating at once made a 5 ms fit take 0.7 s.
         # Floating-point trouble is not printed: the result is checked below and refused in
         # one line when anything a correction uses is not finite.
         with _blas().limit(limits=1), np.errstate(all="ignore"):
-            cal, scales = _fit(
-                spec, accel, mag, options, user_noise, fixed, body_frame,
-                trim=bool(trim), robust=bool(robust), alpha=alpha,
-                mag_mirrored=bool(mag_mirrored), reference=reference,
-                dip_allowance_deg=dip_allowance_deg, on_progress=on_progress,
-            )  # fmt: skip
-            # the handedness: the fit's twins are equal but for it (the reference's when it
-            # can decide, as the trust path did; the user's otherwise)
-            decided = None
-            if reference is not None:
-                decided = _trust().reference_mirrored(cal, reference, dip_allowance_deg)
-            mirrored = bool(mag_mirrored) if decided is None else decided
-            provenance["mag_mirrored"] = mirrored
-            provenance["mag_handedness"] = "stated" if decided is None else "reference"
-            # back to the user's units with the provenance (one new Calibration, not two)
-            cal = cal.with_raw_scale(scales, options=provenance)
-            cal = cal.with_mag_handedness(mirrored)
-            if reference is not None and cal.field_reference is None:  # the ellipsoid path
-                cal = dataclasses.replace(cal, field_reference=reference)
-            if g is not None or h is not None:
-                cal = cal.with_field_magnitudes(g, h)
-    except np.linalg.LinAlgError as exc:
+            cal, scales = _fit(checked, accel, mag, time_ordered, temperature)
+            cal = _in_user_terms(cal, checked, scales)
+    except np.linalg.LinAlgError:  # no numpy message reaches the user: it names no fix
         raise ValueError(
-            f"the poses cannot determine the calibration (numpy: {' '.join(str(exc).split())}); "
+            "the poses cannot determine the calibration (a singular or indefinite system); "
             "record poses with each axis pointing up and down, and check the readings change "
             "from pose to pose"
         ) from None
@@ -289,54 +496,67 @@ def calibrate(
         cal.check_values()
     except ValueError as exc:
         raise ValueError(
-            f"the {method} fit gave no usable calibration ({str(exc).removeprefix('invalid ')}"
-            "); check the readings (units, columns) and record poses with each axis up and down"
+            f"the {fit.method} fit gave no usable calibration "
+            f"({str(exc).removeprefix('invalid ')}); check the readings (units, columns) and "
+            "record poses with each axis up and down"
         ) from None
     return cal
 
 
-def _fit(
-    spec: Method,
-    accel: Samples | None,
-    mag: Samples | None,
-    options: Mapping[str, object],
-    user_noise: Mapping[str, np.ndarray],
-    fixed: Mapping[str, float | None],
-    body_frame: str,
-    *,
-    trim: bool,
-    robust: bool,
-    alpha: float,
-    mag_mirrored: bool,
-    reference: FieldReference | None,
-    dip_allowance_deg: float,
-    on_progress: Callable[[str], None] | None,
+# ----------------------------------------------------------------------------- the fit
+def _with_user_noise(
+    stats: PoseStats, given: Mapping[str, np.ndarray], scales: Mapping[str, float]
+) -> tuple[PoseStats, dict[str, str]]:
+    """Replace Eq. 7's covariance by the user's where given (in the readings' scaled units);
+    report each sensor's source."""
+    sources: dict[str, str] = {}
+    for name in stats.sensors:
+        value = given.get(name)
+        if value is not None:
+            stats = stats.replace(
+                **{name: dataclasses.replace(stats.sensor(name), cov=value / scales[name] ** 2)}
+            )
+            sources[name] = "user"
+        else:
+            sources[name] = "scatter" if stats.sensor(name).cov is not None else "residuals"
+    return stats, sources
+
+
+def _scaled_variance(variance: float | None, scale: float) -> float | None:
+    return None if variance is None else variance / scale**2
+
+
+def _continuous(accel: object, mag: object) -> bool:
+    return any(isinstance(x, np.ndarray) and x.ndim == 2 for x in (accel, mag) if x is not None)
+
+
+def _fit_samples(
+    checked: _Checked, accel: Samples | None, mag: Samples | None, temperature: object
 ) -> tuple[Calibration, dict[str, float]]:
-    """The method through the shared trust path, on readings divided by an exact power of two
-    per sensor (the fit sees numbers of order one in any unit); returns the result and those
-    divisors, by which :meth:`Calibration.with_raw_scale` scales it back."""
-    if _continuous(accel, mag):
-        accel, accel_scale = normalise(accel, "accel")
-        mag, mag_scale = normalise(mag, "mag")
-        if not spec.continuous:
-            raise ValueError(
-                f"method {spec.name!r} needs per-pose input: pass a list with one (n_i, 3) "
-                "array per static pose (or use method='ellipsoid' for continuous samples)"
-            )
-        if user_noise:
-            raise ValueError(
-                "noise= needs per-pose input; with continuous samples the ellipsoid method "
-                "estimates the noise from its fit residuals (pass per-pose arrays instead)"
-            )
-        cal = spec.load()(None, raw_accel=accel, raw_mag=mag, body_frame=body_frame, **options)
-        return cal, {"accel": accel_scale, "mag": mag_scale}
-    # one pass over the samples: checks, the divisors and Eq. 5/7 (the statistics are scaled,
-    # not the samples; a method that reads the samples gets scaled copies)
-    stats, scales, arrays = summarize_scaled(accel, mag, trim=trim)
-    raw: dict[str, list[np.ndarray] | None] = {"accel": None, "mag": None}
-    if spec.raw_samples:
-        for s, poses in arrays.items():
-            raw[s] = poses if poses is None or scales[s] == 1.0 else [p / scales[s] for p in poses]
+    """A method that takes continuous samples (the ellipsoid), on them: no pose statistics,
+    no trust path (its verdict comes from its own fit)."""
+    spec = checked.spec
+    accel, accel_scale = normalise(accel, "accel")
+    mag, mag_scale = normalise(mag, "mag")
+    if not spec.continuous:
+        raise ValueError(
+            f"method {spec.name!r} needs per-pose input: pass a list with one (n_i, 3) "
+            "array per static pose (or use method='ellipsoid' for continuous samples)"
+        )
+    if temperature is not None:
+        raise ValueError("temperature= needs per-pose input: one array per static pose")
+    if checked.user_noise:
+        raise ValueError(
+            "noise= needs per-pose input; with continuous samples the ellipsoid method "
+            "estimates the noise from its fit residuals (pass per-pose arrays instead)"
+        )
+    cal = spec.load()(
+        None, raw_accel=accel, raw_mag=mag, body_frame=checked.fit.body_frame, **checked.options
+    )
+    return cal, {"accel": accel_scale, "mag": mag_scale}
+
+
+def _check_count(spec: Method, stats: PoseStats) -> None:
     need = spec.min_poses_for(len(stats.sensors))
     if stats.n_poses < need:
         raise ValueError(
@@ -348,21 +568,83 @@ def _fit(
                 "9 sensor parameters)"
             )
         )
-    stats, sources = _with_user_noise(stats, user_noise, scales)
-    cal = _trust().fit_trusted(
+
+
+def _fit(
+    checked: _Checked,
+    accel: Samples | None,
+    mag: Samples | None,
+    time_ordered: bool,
+    temperature: Sequence[ArrayLike] | None,
+) -> tuple[Calibration, dict[str, float]]:
+    """The method through the shared trust path, on readings divided by an exact power of two
+    per sensor (the fit sees numbers of order one in any unit); returns the result and those
+    divisors, by which :meth:`Calibration.with_raw_scale` scales it back."""
+    if _continuous(accel, mag):
+        return _fit_samples(checked, accel, mag, temperature)
+    spec, fit = checked.spec, checked.fit
+    # one pass over the samples: checks, the divisors and Eq. 5/7 (the statistics are scaled,
+    # not the samples; a method that reads the samples gets scaled copies)
+    stats, scales, arrays = summarize_scaled(accel, mag, trim=checked.trim)
+    raw: dict[str, list[np.ndarray] | None] = {"accel": None, "mag": None}
+    if spec.raw_samples:
+        for s, poses in arrays.items():
+            raw[s] = poses if poses is None or scales[s] == 1.0 else [p / scales[s] for p in poses]
+    _check_count(spec, stats)
+    stats, sources = _with_user_noise(stats, checked.user_noise, scales)
+    thermal: dict[str, object] = {}
+    if temperature is not None:
+        method_fit = spec.load()
+
+        def order_zero(base: PoseStats) -> Calibration:
+            return method_fit(base, body_frame=fit.body_frame, **checked.options)
+
+        means = pose_temperatures(temperature, stats.n_poses)
+        stats, thermal = with_temperature_terms(
+            stats, means, fit.body_frame, order_zero if spec.temperature else None
+        )
+    # the field magnitudes the user gave, for the verdict's gain rules: (factor, given)
+    given = {
+        s: (scales[s] / m, m) for s, m in checked.magnitudes.items() if m and s in stats.sensors
+    }
+    cal = fit_trusted(
         spec,
         stats,
         raw_accel=raw["accel"],
         raw_mag=raw["mag"],
-        body_frame=body_frame,
-        options=options,
+        fit=fit,
+        trust=checked.trust,
+        options=checked.options,
         sources=sources,
-        pose_noise={s: _scaled_variance(fixed[s], scales[s]) for s in stats.sensors},
-        robust=robust,
-        alpha=alpha,
-        mag_mirrored=mag_mirrored,
-        reference=reference,
-        dip_allowance_deg=dip_allowance_deg,
-        on_progress=on_progress,
+        pose_noise={s: _scaled_variance(checked.fixed[s], scales[s]) for s in stats.sensors},
+        reference=checked.reference,
+        on_progress=checked.on_progress,
+        targets=checked.targets,
+        magnitudes=given,
+        time_ordered=time_ordered,
     )
+    if thermal:
+        cal = dataclasses.replace(cal, options={**cal.options, **thermal})
     return cal, scales
+
+
+def _in_user_terms(cal: Calibration, checked: _Checked, scales: dict[str, float]) -> Calibration:
+    """The fitted ``cal`` in the user's units, handedness and frame, with how it was made."""
+    fit, reference = checked.fit, checked.reference
+    # the handedness is decided once (trust.handedness.decide), in the trust path
+    if "mag_handedness" not in cal.options:  # the continuous path has none
+        hand = decide_handedness(
+            cal, bool(fit.mag_mirrored), reference, checked.trust.dip_allowance_deg
+        )
+        mirrored = cal.with_mag_handedness(hand.mirrored)
+        cal = dataclasses.replace(mirrored, options={**mirrored.options, **hand.options})
+    provenance = checked.provenance()
+    provenance.update({k: cal.options[k] for k in ("mag_mirrored", "mag_handedness")})
+    # back to the user's units with the provenance (one new Calibration, not two)
+    cal = cal.with_raw_scale(scales, options=provenance)
+    if reference is not None and cal.field_reference is None:  # the ellipsoid path
+        cal = dataclasses.replace(cal, field_reference=reference)
+    g, h = checked.magnitudes["accel"], checked.magnitudes["mag"]
+    if g is not None or h is not None:
+        cal = cal.with_field_magnitudes(g, h)
+    return cal

@@ -40,9 +40,11 @@ from .geometry.frames import (
     orthogonal_polar_factor,
     twin_flip,
 )
+from .limits import LARGEST, RANGE_TEXT, in_range
 from .notebook import calibration_html
 from .reference import FieldReference
 from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
+from .thermal import TemperatureModel, temperature_names
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -54,6 +56,7 @@ __all__ = [
     "Calibration",
     "Diagnostics",
     "ParameterCovariance",
+    "Reason",
     "RejectedPose",
     "SensorCalibration",
     "Verdict",
@@ -201,7 +204,10 @@ class SensorCalibration(ArrayDataclass):
         Its standard error (``None`` when it was not estimated).
     covariance : ParameterCovariance or None
         This sensor's block of :attr:`Calibration.covariance` (names ``"gain[j,k]"``,
-        ``"bias[j]"``), filled in by the :class:`Calibration` that holds the sensor.
+        ``"bias[j]"``, ``"temp[k,j]"``), filled in by the :class:`Calibration` that holds it.
+    temperature : TemperatureModel or None
+        The bias against temperature, ``bias(T) = bias + Σ c_k (T − T_ref)^k``
+        (:mod:`fieldcal.thermal`); ``None`` when the log had no temperature.
     """
 
     gain: Array = field(metadata=_MATRIX)
@@ -214,6 +220,7 @@ class SensorCalibration(ArrayDataclass):
     covariance: ParameterCovariance | None = field(
         default=None, repr=False, metadata={"stored": False}
     )
+    temperature: TemperatureModel | None = None
 
     JSON_DERIVED = ("gain_std", "bias_std")
 
@@ -225,6 +232,10 @@ class SensorCalibration(ArrayDataclass):
         object.__setattr__(self, "pose_noise_std", float(self.pose_noise_std))
         if self.pose_noise_std_se is not None:
             object.__setattr__(self, "pose_noise_std_se", float(self.pose_noise_std_se))
+        t = self.temperature
+        if t is not None and self.covariance is not None and t.order:  # its error bars
+            std = self.covariance.stds(temperature_names(t.order))
+            object.__setattr__(self, "temperature", dataclasses.replace(t, std=std))
 
     @property
     def gain_std(self) -> Array | None:
@@ -249,8 +260,10 @@ class SensorCalibration(ArrayDataclass):
         """Forward model: body-frame vectors (..., 3) -> raw readings ``gain @ v + bias``."""
         return np.asarray(body, dtype=float) @ self.gain.T + self.bias
 
-    def correct(self, raw: ArrayLike) -> Array:
-        """Inverse model: raw readings (..., 3) -> body-frame vectors ``gain⁻¹ (raw − bias)``."""
+    def correct(self, raw: ArrayLike, temperature: ArrayLike | None = None) -> Array:
+        """Inverse model: raw readings (..., 3) -> body-frame vectors ``gain⁻¹ (raw − bias)``;
+        with ``temperature`` (°C, one per reading or one for all) the bias is ``bias(T)``
+        (:attr:`temperature`; ignored when the sensor has no temperature model)."""
         given = np.asarray(raw)
         if given.dtype.kind not in "fiu":
             raise ValueError(
@@ -259,6 +272,14 @@ class SensorCalibration(ArrayDataclass):
         x = given.astype(float)
         if x.shape[-1:] != (3,):
             raise ValueError(f"raw readings must have shape (..., 3), got {x.shape}")
+        if temperature is not None and self.temperature is not None and self.temperature.order:
+            t = np.asarray(temperature, dtype=float)
+            if t.shape not in ((), x.shape[:-1]):
+                raise ValueError(
+                    f"temperature must be one value or one per reading {x.shape[:-1]}, got "
+                    f"shape {t.shape}"
+                )
+            x = x - self.temperature.shift(t)
         body = np.linalg.solve(self.gain, (x - self.bias).reshape(-1, 3).T).T.reshape(x.shape)
         return cast(Array, body)  # numpy's stubs widen solve's float64 to floating
 
@@ -280,18 +301,73 @@ class RejectedPose(ArrayDataclass):
     reason: str
 
 
+#: The levels a verdict reason can have, mildest first (a ``note`` never raises the verdict).
+REASON_LEVELS = ("note", "warn", "fail")
+#: The code of a reason that came as plain text (a verdict built by hand, an old file's
+#: sentence that matches no rule).
+PLAIN_CODE = "other"
+
+
+@dataclass(frozen=True)
+class Reason:
+    """One reason of a verdict: a stable ``code`` (what scripts and the batch table read; the
+    rule table in ``docs/trust.md``), its ``level`` (``"note"``, ``"warn"`` or ``"fail"``) and
+    the ``text`` people read (the rule's fixed message with the numbers filled in).
+
+    ``str(reason)`` is the text.
+    """
+
+    code: str
+    level: str
+    text: str
+
+    def __post_init__(self) -> None:
+        if self.level not in REASON_LEVELS:
+            raise ValueError(f"reason level must be note, warn or fail, got {self.level!r}"[:120])
+        for name in ("code", "text"):
+            if not isinstance(getattr(self, name), str):
+                raise ValueError(f"reason {name} must be text")
+        if not self.code or not self.code.replace("_", "").isalnum() or not self.code.isascii():
+            raise ValueError(f"reason code must be a short identifier, got {self.code!r}"[:120])
+
+    def __str__(self) -> str:
+        return self.text
+
+
 @dataclass(frozen=True, eq=False)
 class Verdict(ArrayDataclass):
     """Whether to trust the calibration: ``level`` in ``"pass" | "warn" | "fail"`` and one
-    line per reason, each naming the cause and the fix (rules in ``docs/trust.md``)."""
+    :class:`Reason` per finding, each naming the cause and the fix (rules in
+    ``docs/trust.md``), the most severe first.
+
+    A reason given as plain text (older code) becomes ``Reason("other", level, text)`` with the
+    verdict's level (``note`` under ``pass``).
+    """
 
     level: str
-    reasons: tuple[str, ...] = ()
+    reasons: tuple[Reason, ...] = ()
 
     def __post_init__(self) -> None:
         if self.level not in ("pass", "warn", "fail"):
             raise ValueError(f"verdict level must be pass, warn or fail, got {self.level!r}")
-        object.__setattr__(self, "reasons", tuple(self.reasons))
+        plain_level = "note" if self.level == "pass" else self.level
+        reasons = tuple(
+            r if isinstance(r, Reason) else Reason(PLAIN_CODE, plain_level, str(r))
+            for r in self.reasons
+        )
+        object.__setattr__(self, "reasons", reasons)
+
+    @property
+    def codes(self) -> tuple[str, ...]:
+        """The reasons' codes, in order (what a script tests)."""
+        return tuple(r.code for r in self.reasons)
+
+    @property
+    def summary(self) -> str:
+        """The level and the codes on one line: ``"WARN (accuracy, untested)"``, ``"PASS"``
+        (what the CLI's first line, the report's banner and the batch table show)."""
+        codes = ", ".join(dict.fromkeys(self.codes))
+        return self.level.upper() + (f" ({codes})" if codes else "")
 
 
 @dataclass(frozen=True, eq=False)
@@ -552,13 +628,15 @@ class Calibration(ArrayDataclass):
         ]
         return out[0], out[1]
 
-    def correct_accel(self, raw: ArrayLike) -> Array:
-        """Raw accelerometer readings (..., 3) -> body-frame specific force (inverse model)."""
-        return self.sensor("accel").correct(raw)
+    def correct_accel(self, raw: ArrayLike, temperature: ArrayLike | None = None) -> Array:
+        """Raw accelerometer readings (..., 3) -> body-frame specific force (inverse model);
+        ``temperature`` (°C) applies the bias's temperature terms when fitted."""
+        return self.sensor("accel").correct(raw, temperature)
 
-    def correct_mag(self, raw: ArrayLike) -> Array:
-        """Raw magnetometer readings (..., 3) -> body-frame magnetic field (inverse model)."""
-        return self.sensor("mag").correct(raw)
+    def correct_mag(self, raw: ArrayLike, temperature: ArrayLike | None = None) -> Array:
+        """Raw magnetometer readings (..., 3) -> body-frame magnetic field (inverse model);
+        ``temperature`` (°C) applies the bias's temperature terms when fitted."""
+        return self.sensor("mag").correct(raw, temperature)
 
     def compare(self, other: Calibration, *, sigmas: float = 3.0) -> Comparison:
         """Which parameters of ``other`` (a later calibration of the same device) differ from
@@ -599,10 +677,11 @@ class Calibration(ArrayDataclass):
         figures: dict[str, Figure] = report.report_figures(self, log)
         return figures
 
-    def correct_gyro(self, raw: ArrayLike) -> Array:
+    def correct_gyro(self, raw: ArrayLike, temperature: ArrayLike | None = None) -> Array:
         """Raw gyroscope readings (..., 3) -> body-frame angular rate in rad/s,
-        ``gain⁻¹ (raw − bias)``, in the same body frame as the other sensors."""
-        return self.sensor(GYRO).correct(raw)
+        ``gain⁻¹ (raw − bias)``, in the same body frame as the other sensors; ``temperature``
+        (°C) applies the bias's temperature terms when fitted."""
+        return self.sensor(GYRO).correct(raw, temperature)
 
     def with_field_magnitudes(
         self, gravity: float | None = None, field_strength: float | None = None
@@ -622,7 +701,7 @@ class Calibration(ArrayDataclass):
             if not _magnitude_ok(value):
                 label = "gravity" if name == "accel" else "field_strength"
                 raise ValueError(
-                    f"{label} must be a positive number from 1e-150 to 1e150, got {value!r}"[:200]
+                    f"{label} must be a positive number {RANGE_TEXT}, got {value!r}"[:200]
                 )
             c = float(np.linalg.norm(ref)) / float(value)
             factors[f"{name}.gain"] = c
@@ -651,7 +730,7 @@ class Calibration(ArrayDataclass):
             f"{name}.{part}": c
             for name, c in scales.items()
             if getattr(self, name) is not None and c != 1.0
-            for part in ("gain", "bias")
+            for part in ("gain", "bias", "temp")
         }
         covariance = None
         if factors and self.covariance is not None:
@@ -673,6 +752,7 @@ class Calibration(ArrayDataclass):
                 pose_noise_std_se=None
                 if sensor.pose_noise_std_se is None
                 else sensor.pose_noise_std_se * c,
+                temperature=None if sensor.temperature is None else sensor.temperature.scaled(c),
                 # the block the result will hold (attached here, not by a second replace)
                 covariance=None if covariance is None else covariance.sensor_blocks[name],
             )
@@ -777,7 +857,9 @@ class Calibration(ArrayDataclass):
 
     def check_values(self) -> None:
         """Refuse values no correction can use: non-finite or singular gains, non-finite
-        biases, reference fields or rotations. One-line ``ValueError`` naming the first."""
+        biases, reference fields or rotations, and gains or biases beyond the range fieldcal
+        works in (an entry over :data:`~fieldcal.limits.LARGEST`, 1e150; a gain's scale
+        under :data:`SMALLEST_GAIN`). One-line ``ValueError`` naming the first."""
         if self.accel is None and self.mag is None:
             raise ValueError(
                 "invalid calibration: it has neither an accelerometer nor a magnetometer"
@@ -793,12 +875,18 @@ class Calibration(ArrayDataclass):
                 raise ValueError(
                     f"invalid calibration: {name}.noise_cov has a negative variance on its diagonal"
                 )
+            if np.any(np.abs(sensor.noise_cov) > LARGEST * LARGEST):  # a variance: units²
+                raise ValueError(
+                    f"invalid calibration: {name}.noise_cov has an entry beyond {LARGEST**2:g}, "
+                    "the square of the largest reading; write the file again with fieldcal"
+                )
             if not (np.isfinite(sensor.pose_noise_std) and sensor.pose_noise_std >= 0):
                 raise ValueError(
                     f"invalid calibration: {name}.pose_noise_std must be a finite number >= 0"
                 )
             K = sensor.gain
             s = np.linalg.svd(K, compute_uv=False)
+            _check_range(name, K, sensor.bias, s)
             if not s[-1] > 1e-12 * s[0]:
                 raise ValueError(
                     f"invalid calibration: {name}.gain is singular, so readings cannot be corrected"
@@ -812,6 +900,7 @@ class Calibration(ArrayDataclass):
                 if not np.all(np.isfinite(getattr(gyro, part))):
                     raise ValueError(f"invalid calibration: gyro.{part} has NaN or inf entries")
             s = np.linalg.svd(gyro.gain, compute_uv=False)
+            _check_range("gyro", gyro.gain, gyro.bias, s)
             if not s[-1] > 1e-12 * s[0]:
                 raise ValueError(
                     "invalid calibration: gyro.gain is singular, so rates cannot be corrected"
@@ -822,14 +911,40 @@ class Calibration(ArrayDataclass):
             raise ValueError("invalid calibration: covariance has NaN or inf entries")
 
 
+#: The smallest scale (singular value) of a gain in a file, raw units per unit of field: the
+#: smallest raw scale supported (1e-30) over the largest field taken (1e150) stays above it.
+SMALLEST_GAIN = 1e-200
+
+
+def _check_range(name: str, gain: Array, bias: Array, singular: NDArray[np.floating[Any]]) -> None:
+    """Gain and bias entries within :data:`~fieldcal.limits.LARGEST`, a gain's scale at least
+    :data:`SMALLEST_GAIN`, naming the key; ``singular``: the gain's singular values."""
+    for part, values in (("gain", gain), ("bias", bias)):
+        big = np.abs(values) > LARGEST
+        if big.any():
+            at = np.unravel_index(int(np.argmax(big)), values.shape)
+            key = f"{name}.{part}[{','.join(str(int(i)) for i in at)}]"
+            raise ValueError(
+                f"invalid calibration: {key} is {values[at]:.3g}, beyond the range fieldcal "
+                f"works in ({RANGE_TEXT}); write the file again with fieldcal"
+            )
+    # a well-conditioned gain of no reading's scale (a singular one is said after)
+    if singular[-1] > 1e-12 * singular[0] and not singular[-1] >= SMALLEST_GAIN:
+        raise ValueError(
+            f"invalid calibration: {name}.gain's smallest scale is {singular[-1]:.3g}, below "
+            f"{SMALLEST_GAIN:g} (raw units per unit of field: no reading fieldcal takes gives "
+            "it); write the file again with fieldcal"
+        )
+
+
 def _magnitude_ok(value: object) -> bool:
-    """A field magnitude: a real number (not a bool) from 1e-150 to 1e150, so gains and
-    their covariance stay in floating-point range."""
+    """A field magnitude: a real number (not a bool) in :func:`fieldcal.limits.in_range`, so
+    gains and their covariance stay in floating-point range."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
         return False
     if isinstance(value, np.complexfloating):
         return False
-    return bool(1e-150 <= float(value) <= 1e150)
+    return in_range(float(value))
 
 
 #: The conventions, stated in every document for readers without the docs.
@@ -856,6 +971,7 @@ def _sensor_block(
         return None
     positions = covariance._positions
     names = [n for n in _SENSOR_NAMES[sensor] if n in positions]
+    names += [n for n in covariance.names if n.startswith(f"{sensor}.temp[")]
     if not names:
         return None
     idx = [positions[n] for n in names]

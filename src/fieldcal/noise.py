@@ -48,7 +48,7 @@ import math
 import os
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,20 +60,23 @@ from ._version import __version__
 from .calibration import Calibration
 from .errors import InputError
 from .logs.columns import normalise
+from .logs.inputs import read_log
 from .logs.log import Log
-from .logs.sources import read_log
 from .logs.stillness import detect_still
 from .stats.allan import AllanDeviation, NoiseModel, allan_deviation, fit_noise_model
 
 __all__ = [
     "GAP",
+    "IMU_YAML_FORMATS",
     "SENSORS",
     "STANDARD_GRAVITY",
     "STILL_MODES",
     "WHOLE_LOG",
+    "ImuNoise",
     "NoiseFit",
     "NoiseReport",
     "characterise_noise",
+    "imu_yaml",
 ]
 
 Array = NDArray[np.float64]
@@ -298,15 +301,15 @@ class NoiseReport(ArrayDataclass):
         }
 
     def kalibr_yaml(self) -> str:
-        """The ``imu.yaml`` of Kalibr and OpenVINS: noise densities and random walks in SI.
+        """The ``imu.yaml`` of Kalibr: noise densities and random walks in SI.
 
         Keys: ``accelerometer_noise_density`` [m/s²/√Hz], ``accelerometer_random_walk``
         [m/s³/√Hz], ``gyroscope_noise_density`` [rad/s/√Hz], ``gyroscope_random_walk``
-        [rad/s²/√Hz], ``update_rate`` [Hz]. Each value is the largest of the three axes (every
-        axis in a comment); an unresolved random walk is written as its upper bound
-        ``K + 2σ``. The measured values are written as they are: Kalibr's documentation
-        advises larger ones for calibration, which the comments say and fieldcal does not
-        apply.
+        [rad/s²/√Hz], ``rostopic``, ``update_rate`` [Hz]. Each value is the largest of the
+        three axes (every axis in a comment); an unresolved random walk is written as its
+        upper bound ``K + 2σ``. The measured values are written as they are: Kalibr's
+        documentation advises larger ones for calibration, which the comments say and
+        fieldcal does not apply. Written by :func:`imu_yaml`, as ``fieldcal export``'s.
 
         Returns
         -------
@@ -317,27 +320,58 @@ class NoiseReport(ArrayDataclass):
         InputError
             The log has no accelerometer or gyroscope, or their units are unknown.
         """
+        return imu_yaml(self.imu_noise(), "kalibr", header=self._yaml_header())
+
+    def openvins_yaml(self) -> str:
+        """OpenVINS' ``kalibr_imu_chain.yaml``: ``%YAML:1.0`` and the ``imu0`` block.
+
+        The same figures as :meth:`kalibr_yaml`, written by :func:`imu_yaml`.
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        InputError
+            As :meth:`kalibr_yaml`.
+        """
+        return imu_yaml(self.imu_noise(), "openvins", header=self._yaml_header())
+
+    def _yaml_header(self) -> list[str]:
         how = "the whole log as one still recording" if self.still == "all" else "still intervals"
-        lines = [
-            f"# imu.yaml for Kalibr / OpenVINS, written by fieldcal {self.version} "
-            "(fieldcal noise)",
-            f"# log: {self.source}",
-            f"# {self.samples} still samples in {len(self.stretches)} stretch(es): "
+        return [
+            f"written by fieldcal {self.version} (fieldcal noise) from {self.source}",
+            f"{self.samples} still samples in {len(self.stretches)} stretch(es): "
             f"{self.seconds:.1f} s, the longest {self.longest:.1f} s, at {self.rate:.6g} Hz "
             f"({how})",
-            "# Allan deviation fit per axis: sigma^2(tau) = N^2/tau + B^2 (2 ln2/pi) + K^2 tau/3;",
-            "# each value below is the LARGEST of the three axes (x, y, z listed after it).",
-            "# These are the figures of a still sensor at one temperature. Kalibr's wiki (IMU",
-            "# Noise Model) advises larger values for calibration, to cover unmodelled effects;",
-            "# OpenVINS' example configurations inflate them (e.g. x5 the densities, x10 the",
-            "# random walks). fieldcal does NOT inflate them: scale them up here if you follow",
-            "# that advice.",
+            "Allan deviation fit per axis: sigma^2(tau) = N^2/tau + B^2 (2 ln2/pi) + K^2 tau/3;",
+            "each value is the LARGEST of the three axes (x, y, z in its comment).",
+            "These are the figures of a still sensor at one temperature. Kalibr's wiki (IMU",
+            "Noise Model) advises larger values for calibration, to cover unmodelled effects;",
+            "OpenVINS' example configurations inflate them (e.g. x5 the densities, x10 the",
+            "random walks). fieldcal does NOT inflate them: scale them up if you follow that.",
         ]
+
+    def imu_noise(self) -> ImuNoise:
+        """The four figures of an ``imu.yaml`` in SI units, with a comment for each.
+
+        Returns
+        -------
+        ImuNoise
+
+        Raises
+        ------
+        InputError
+            The log has no accelerometer or gyroscope, or their units are unknown.
+        """
+        values: dict[str, float] = {}
+        notes: dict[str, str] = {}
         for sensor, word in (("accel", "accelerometer"), ("gyro", "gyroscope")):
             fit = self.fits.get(sensor)
             if fit is None:
                 raise InputError(
-                    f"{self.source}: no {_NAMES[sensor]} was characterised; Kalibr's imu.yaml "
+                    f"{self.source}: no {_NAMES[sensor]} was characterised; an imu.yaml "
                     f"needs both the accelerometer and the gyroscope (pass --{sensor}-cols)"
                 )
             if fit.si_scale is None:
@@ -354,17 +388,12 @@ class NoiseReport(ArrayDataclass):
             written = np.where(resolved, walk, walk + 2.0 * walk_std)
             axis_n = int(np.argmax(density))
             axis_k = int(np.argmax(written))
-            conversion = (
-                "" if fit.si_scale == 1.0 else f"; from {fit.unit} x {fit.si_scale:.8g} {si}"
+            conversion = "" if fit.si_scale == 1.0 else f", from {fit.unit} x {fit.si_scale:.8g}"
+            values[f"{word}_noise_density"] = float(density[axis_n])
+            notes[f"{word}_noise_density"] = (
+                f"[{si}/sqrt(Hz)] white noise, axis {'xyz'[axis_n]}; x,y,z: {_triple(density)}"
+                f"{conversion}; tau {_range(fit)}"
             )
-            lines.append("")
-            lines.append(f"# {word.capitalize()}s ({fit.unit}{conversion})")
-            lines.append(
-                f"{word}_noise_density: {density[axis_n]:.6e}  "
-                f"# [{si}/sqrt(Hz)] white noise, axis {'xyz'[axis_n]}; "
-                f"x,y,z: {_triple(density)}"
-            )
-            walk_unit = "m/s^3" if sensor == "accel" else "rad/s^2"
             if resolved[axis_k]:
                 how = f"bias random walk, axis {'xyz'[axis_k]}"
             else:
@@ -372,21 +401,150 @@ class NoiseReport(ArrayDataclass):
                     f"UPPER BOUND K + 2 sigma (axis {'xyz'[axis_k]}): the still data do not "
                     "resolve the random walk; record longer"
                 )
-            lines.append(
-                f"{word}_random_walk: {written[axis_k]:.6e}  # [{walk_unit}/sqrt(Hz)] {how}; "
-                f"K x,y,z: {_triple(walk)} +- {_triple(walk_std)}"
+            walk_unit = "m/s^3" if sensor == "accel" else "rad/s^2"
+            values[f"{word}_random_walk"] = float(written[axis_k])
+            notes[f"{word}_random_walk"] = (
+                f"[{walk_unit}/sqrt(Hz)] {how}; K x,y,z: {_triple(walk)} +- {_triple(walk_std)}"
             )
-        gyro = self.fits["gyro"]
-        lines.append("")
-        lines.append(
-            f"update_rate: {self.rate:.6f}  # [Hz] the log's sample rate; Kalibr needs it "
-            "to discretise the densities"
+        notes["update_rate"] = "[Hz] the log's sample rate (discretises the densities)"
+        return ImuNoise(
+            rate=float(self.rate),
+            accel_density=values["accelerometer_noise_density"],
+            accel_walk=values["accelerometer_random_walk"],
+            gyro_density=values["gyroscope_noise_density"],
+            gyro_walk=values["gyroscope_random_walk"],
+            notes=notes,
         )
-        lines.append(
-            f"# fitted tau: accelerometer {_range(self.fits['accel'])}, gyroscope {_range(gyro)}"
+
+
+#: The formats :func:`imu_yaml` writes.
+IMU_YAML_FORMATS = ("kalibr", "openvins")
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """The figures an ``imu.yaml`` holds, SI units; ``None`` where the source cannot give one.
+
+    Attributes
+    ----------
+    rate : float or None
+        ``update_rate`` (Hz).
+    accel_density, gyro_density : float or None
+        White-noise densities (m/s²/√Hz, rad/s/√Hz).
+    accel_walk, gyro_walk : float or None
+        Bias random walks (m/s³/√Hz, rad/s²/√Hz).
+    notes : dict
+        Key -> the comment written after its value.
+    why : dict
+        Key -> why the figure is unknown (for the refusal), for keys whose value is ``None``.
+    """
+
+    rate: float | None
+    accel_density: float | None
+    accel_walk: float | None
+    gyro_density: float | None
+    gyro_walk: float | None
+    notes: dict[str, str] = field(default_factory=dict)
+    why: dict[str, str] = field(default_factory=dict)
+
+    def figures(self) -> dict[str, float | None]:
+        """The yaml keys and their values, in Kalibr's order."""
+        return {
+            "accelerometer_noise_density": self.accel_density,
+            "accelerometer_random_walk": self.accel_walk,
+            "gyroscope_noise_density": self.gyro_density,
+            "gyroscope_random_walk": self.gyro_walk,
+            "update_rate": self.rate,
+        }
+
+
+def imu_yaml(
+    noise: ImuNoise, fmt: str = "kalibr", *, header: Sequence[str] = (), rostopic: str = "/imu0"
+) -> str:
+    """The ``imu.yaml`` of Kalibr or OpenVINS: the one writer of both, for ``fieldcal noise``
+    and ``fieldcal export``.
+
+    ``kalibr``: Kalibr's flat ``imu.yaml`` (its wiki, "IMU Noise Model" and the example
+    ``imu_adis16448.yaml``). ``openvins``: OpenVINS' ``kalibr_imu_chain.yaml``: a
+    ``%YAML:1.0`` line (OpenCV's ``FileStorage``, which OpenVINS reads it with, needs it) and the
+    ``imu0`` block with the same keys plus ``T_i_b``, ``time_offset``, ``model`` and the
+    intrinsics ``Tw``, ``R_IMUtoGYRO``, ``Ta``, ``R_IMUtoACC`` (identity) and ``Tg`` (zero): the
+    readings reach OpenVINS already corrected (``fieldcal apply``).
+
+    Parameters
+    ----------
+    noise : ImuNoise
+    fmt : {"kalibr", "openvins"}
+    header : sequence of str
+        Comment lines written at the top.
+    rostopic : str
+        The IMU's topic (``/imu0``, Kalibr's and OpenVINS' default; edit it to yours).
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        A figure is unknown: one line naming it and ``fieldcal noise``, which measures all four
+        (never written commented out, never guessed).
+    """
+    if fmt not in IMU_YAML_FORMATS:
+        raise ValueError(f"unknown imu.yaml format {fmt!r}; choose one of {IMU_YAML_FORMATS}")
+    figures = noise.figures()
+    missing = [key for key, value in figures.items() if value is None]
+    if missing:
+        why = noise.why.get(missing[0], "the source does not measure it")
+        raise InputError(
+            f"cannot write the {fmt} imu.yaml: {', '.join(missing)} unknown ({why}); "
+            f"fieldcal noise LOG --export {fmt} -o imu.yaml measures all four figures from a "
+            "still recording"
         )
-        lines.append("# rostopic: /imu0  # Kalibr also needs the IMU's topic: uncomment and set it")
-        return "\n".join(lines) + "\n"
+    for key, value in figures.items():
+        if value is None or not (math.isfinite(value) and value > 0):
+            raise InputError(f"cannot write the {fmt} imu.yaml: {key} = {value!r} is not positive")
+    lines = ["%YAML:1.0", ""] if fmt == "openvins" else []
+    lines += [f"# {text}" for text in header]
+    indent = "  " if fmt == "openvins" else ""
+    if fmt == "openvins":
+        lines += ["", "imu0:", "  T_i_b:  # IMU to body: identity (the IMU is the body)"]
+        lines += [
+            f"    - [{', '.join('1.0' if i == j else '0.0' for j in range(4))}]" for i in range(4)
+        ]
+
+    def entry(key: str, value: str) -> str:
+        note = noise.notes.get(key)
+        return f"{indent}{key}: {value}" + (f"  # {note}" if note else "")
+
+    for key, value in figures.items():
+        if key != "update_rate":
+            lines.append(entry(key, f"{value:.6e}"))
+    # no comment after a text value: OpenCV's FileStorage would read it as part of the text
+    lines.append(f"{indent}# rostopic: the IMU's topic; edit it to yours")
+    lines.append(f"{indent}rostopic: {rostopic}")
+    if fmt == "openvins":
+        lines.append(f"{indent}time_offset: 0.0")
+    lines.append(entry("update_rate", f"{figures['update_rate']!r}"))
+    if fmt == "openvins":
+        lines.append(f'{indent}model: "kalibr"')
+        lines.append(
+            f"{indent}# intrinsics: identity, as the readings are corrected before OpenVINS "
+            "(fieldcal apply)"
+        )
+        for name, diagonal in (
+            ("Tw", 1.0),
+            ("R_IMUtoGYRO", 1.0),
+            ("Ta", 1.0),
+            ("R_IMUtoACC", 1.0),
+            ("Tg", 0.0),
+        ):
+            lines.append(f"{indent}{name}:")
+            lines += [
+                f"{indent}  - [{', '.join(repr(diagonal) if i == j else '0.0' for j in range(3))}]"
+                for i in range(3)
+            ]
+    return "\n".join(lines) + "\n"
 
 
 def _triple(values: Array) -> str:
@@ -635,7 +793,7 @@ def characterise_noise(
     Parameters
     ----------
     source : path, DataFrame, pyarrow Table, mapping or Log
-        The log, read by :func:`fieldcal.logs.sources.read_log` (columns recognised by name).
+        The log, read by :func:`fieldcal.logs.inputs.read_log` (columns recognised by name).
     cal : Calibration or path, optional
         A calibration (or its JSON file): the sensors it calibrates are analysed as it corrects
         them, in its units (``cal.units``), the gyroscope in rad/s.
@@ -657,7 +815,7 @@ def characterise_noise(
         The τ range of the fit (s); by default chosen from the data
         (:func:`fieldcal.stats.allan.fit_noise_model`).
     **reading
-        Column and reader options of :func:`~fieldcal.logs.sources.read_log`
+        Column and reader options of :func:`~fieldcal.logs.inputs.read_log`
         (``accel_cols``, ``gyro_cols``, ``mag_cols``, ``time_col``, ``drop_nan``,
         ``split_on_reset``, ``decimal`` ...).
 

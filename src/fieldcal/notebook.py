@@ -72,12 +72,14 @@ def calibration_html(cal: Any) -> str:
     """The calibration as an HTML fragment (see the module's docstring)."""
     parts = ["<div class='fieldcal-calibration'>"]
     level = "unknown" if cal.verdict is None else cal.verdict.level
+    headline = "UNKNOWN" if cal.verdict is None else cal.verdict.summary
     colour = _COLOURS.get(level, "#555")
-    parts.append(
-        f"<p style='color:{colour};font-weight:bold'>verdict: {html.escape(level.upper())}</p>"
-    )
+    parts.append(f"<p style='color:{colour};font-weight:bold'>verdict: {html.escape(headline)}</p>")
     if cal.verdict is not None and cal.verdict.reasons:
-        items = "".join(f"<li>{html.escape(r)}</li>" for r in cal.verdict.reasons)
+        items = "".join(
+            f"<li>{html.escape(r.text)} <code>{html.escape(r.code)}</code></li>"
+            for r in cal.verdict.reasons
+        )
         parts.append(f"<ul>{items}</ul>")
     units = cal.units or {}
     for name, label, unit in (

@@ -10,31 +10,50 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .api import calibrate
+from .api import calibrate_with, check_targets, field_settings, targets_for
 from .calibration import Calibration, ParameterCovariance
 from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .geometry.rotations import hat, rotation_angle_deg
 from .gyro.estimate import GyroFit, fit_gyro
-from .gyro.integrate import integrate
+from .gyro.gyro_temperature import with_bias_temperature
+from .gyro.integrate import effective_time, integrate
+from .likelihood.cramer_rao import pose_rotation_factors
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
-from .logs.poses import POSE_SOURCES
-from .logs.sources import read_log
+from .logs.inputs import read_log
+from .logs.log_temperature import pose_temperature_samples
+from .logs.pose_finding import NO_STILL, POSE_SOURCES
+from .logs.pose_hints import pose_advice
 from .methods import get as get_method
-from .methods.mle.uncertainty import pose_rotation_covariance
-from .stats.poses import check_spread, stats_from_means
+from .methods.continuous import fit_continuous
+from .settings import (
+    OPTIONS,
+    TARGET_OPTIONS,
+    DetectSettings,
+    FitSettings,
+    ReadSettings,
+    TrustSettings,
+    changed,
+    settings_of,
+)
+from .stats.pose_stats import check_spread, stats_from_means
+from .trust.continuous_motion import trust_continuous
+from .trust.targets import Targets
 
 __all__ = [
     "ACCEL_SIGNS",
+    "POSE_MODES",
     "POSE_SOURCES",
     "LogCalibration",
+    "LogSettings",
     "calibrate_log",
     "document",
     "fold_axes",
@@ -42,29 +61,60 @@ __all__ = [
     "run_log",
 ]
 
-#: Options of :func:`calibrate_log` that go to the reader, not to the calibration.
-READ_OPTIONS = ("decimal", "split_on_reset", "imu_topic", "mag_topic")
+#: ``poses=``: the ways to cut a log into poses, the continuous-motion estimator
+#: (:mod:`fieldcal.methods.continuous`: no rests, a gyroscope) and ``"auto"`` (still detection
+#: when the log has enough rests, else continuous when it has a gyroscope and time).
+POSE_MODES = ("auto", *POSE_SOURCES, "continuous")
+#: The still detector's warning that its "rests" move: with ``poses="auto"`` the log is then
+#: calibrated from continuous motion when it can be.
+MOVING_RESTS = "the still intervals found move"
+#: Options of :func:`calibrate` the continuous estimator and its trust path use
+#: (:func:`fieldcal.trust.continuous_motion.trust_continuous`); others are noted as unused.
+CONTINUOUS_OPTIONS = (
+    "gravity",
+    "field_strength",
+    "mag_mirrored",
+    "location",
+    "date",
+    "dip_allowance_deg",
+    "targets",
+    *TARGET_OPTIONS,
+)
+#: Fit options :func:`run_log` itself reads, whatever estimator it runs.
+_LOG_OPTIONS = ("method", "mag_axes", "accel_sign", "gyro")
 
 Array = NDArray[np.float64]
 
 
-def _check_poses(poses: PoseSet, method: str, log: Log, rate: float | None) -> None:
+def _check_poses(
+    poses: PoseSet,
+    method: str,
+    log: Log,
+    rate: float | None,
+    detection: dict[str, Any] | None = None,
+) -> None:
+    """Enough poses and orientations for ``method``, else an :class:`InputError` naming the
+    fix. ``detection``: the settings the poses were found with in ``log`` (None: the poses were
+    given): the message then says which other settings find how many
+    (:func:`~fieldcal.logs.pose_hints.pose_advice`)."""
     n = poses.n
     sensors = [(name, getattr(poses, name)) for name in ("accel", "mag")]
     sensors = [(name, samples) for name, samples in sensors if samples is not None]
     need = get_method(method).min_poses_for(len(sensors))
+    hints = None
+    if detection is not None and poses.source in ("still", "column"):
+        distinct = len({entry.get("orientation", i) for i, entry in enumerate(poses.entries)})
+        if n < need or distinct < max(need, 8 if len(sensors) == 2 else 9):
+            hints = pose_advice(log, found=poses, **detection)
     if n < need:
         advice = f"hold the device still in {need - n} or more further orientations"
-        if poses.source == "still" and turns_slowly(log, rate=rate):
+        if hints is None and poses.source == "still" and turns_slowly(log, rate=rate):
             advice = "the log turns slowly without rests: use --poses windows (poses='windows')"
+        why = " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
         raise InputError(
             f"{n} pose(s) found; the {method} method needs at least {need}"
-            + (
-                " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
-                if len(sensors) == 2
-                else ""
-            )
-            + f": {advice}"
+            + (why if len(sensors) == 2 and hints is None else "")
+            + (f": {hints}; or {advice}" if hints else f": {advice}")
         )
     means = {name: poses.means(name) for name, _ in sensors}
     try:
@@ -78,8 +128,10 @@ def _check_poses(poses: PoseSet, method: str, log: Log, rate: float | None) -> N
         raise InputError(
             f"the {n} poses show only {distinct} distinct orientations (closer than 3° count as "
             f"one); {'a joint' if len(sensors) == 2 else 'a single-sensor'} calibration needs at "
-            f"least {need}: add poses tilted between the axes (e.g. resting on the edges and "
-            "corners of a box), not only with each axis up and down"
+            f"least {need}: "
+            + (f"{hints}; or add" if hints else "add")
+            + " poses tilted between the axes (e.g. resting on the edges and corners of a box), "
+            "not only with each axis up and down"
         )
 
 
@@ -89,7 +141,8 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
     ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
     ``Pᵀ b``, so firmware applies the result to the readings as logged. Used for the
     magnetometer's axis map (``spec`` recorded as ``options["mag_axes"]``) and for an
-    accelerometer that reports gravity (``P = −I``, ``options["accel_sign"]``).
+    accelerometer that reports gravity (``P = −I``, ``options["accel_sign"]``). The bias's
+    temperature terms fold the same way, ``c_k → Pᵀ c_k`` (:mod:`fieldcal.thermal`).
     """
     fitted = getattr(cal, sensor)
     if fitted is None:
@@ -101,6 +154,11 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
         bias=Pt @ fitted.bias,
         noise_cov=Pt @ fitted.noise_cov @ P,
         noise_cov_std=None if fitted.noise_cov_std is None else A @ fitted.noise_cov_std @ A.T,
+        temperature=None
+        if fitted.temperature is None
+        else dataclasses.replace(
+            fitted.temperature, coefficients=fitted.temperature.coefficients @ P, std=None
+        ),
     )
     covariance = cal.covariance
     if covariance is not None:
@@ -109,6 +167,8 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
         # raw parameter (i, ...) = Σ_k Pᵀ[i, k] · fitted parameter (k, ...), per gain column
         triples = [[f"{sensor}.gain[{r},{j}]" for r in range(3)] for j in range(3)]
         triples.append([f"{sensor}.bias[{r}]" for r in range(3)])
+        order = 0 if fitted.temperature is None else fitted.temperature.order
+        triples += [[f"{sensor}.temp[{k},{r}]" for r in range(3)] for k in range(1, order + 1)]
         for triple in triples:
             if all(t in names for t in triple):
                 idx = [names.index(t) for t in triple]
@@ -126,6 +186,72 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
         options={**cal.options, option: spec},
         poses=poses,
     )
+
+
+@dataclass(frozen=True)
+class LogSettings:
+    """Everything a log's calibration is given, by stage, built once from the user's values.
+
+    Attributes
+    ----------
+    read, detect, fit, trust : ReadSettings, DetectSettings, FitSettings, TrustSettings
+        The option table's settings (:mod:`fieldcal.settings`): the reader's, the still
+        detector's, the fit's (with the axis map, the accelerometer's sign and the gyroscope
+        stage) and the check's.
+    targets : Targets, optional
+        ``targets=`` of :func:`fieldcal.calibrate`; the target options of ``trust``
+        (``--target-tilt`` ...) replace its values.
+    method_options : mapping
+        The method's own options (``max_iter``, ``initial``, ...), checked by its registry entry
+        when the fit starts.
+    """
+
+    read: ReadSettings = field(default_factory=ReadSettings)
+    detect: DetectSettings = field(default_factory=DetectSettings)
+    fit: FitSettings = field(default_factory=FitSettings)
+    trust: TrustSettings = field(default_factory=TrustSettings)
+    targets: Targets | None = None
+    method_options: Mapping[str, object] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, keywords: Mapping[str, object] | None = None, /, **more: object) -> LogSettings:
+        """The library's keywords (:func:`calibrate_log`'s, :func:`fieldcal.calibrate_many`'s)
+        split by stage: an option of the table goes to its stage's settings, ``targets`` is
+        checked, any other keyword is the method's own.
+
+        Parameters
+        ----------
+        keywords : mapping, optional
+            By library keyword; one left out takes the table's default.
+        **more
+            More of them (``LogSettings.of(poses="windows", gravity=9.81)``).
+
+        Returns
+        -------
+        LogSettings
+        """
+        keywords = {**(keywords or {}), **more}
+        own = {k: v for k, v in keywords.items() if k not in OPTIONS and k != "targets"}
+        return cls(
+            read=settings_of(ReadSettings, keywords),
+            detect=settings_of(DetectSettings, keywords),
+            fit=settings_of(FitSettings, keywords),
+            trust=settings_of(TrustSettings, keywords),
+            targets=check_targets(keywords.get("targets")),
+            method_options=own,
+        )
+
+    def given(self) -> dict[str, object]:
+        """The fit's and the check's options given values other than their defaults, by
+        library keyword (for notes on what an estimator does not use)."""
+        out = {**changed(self.fit), **changed(self.trust)}
+        out.update(self.method_options)
+        if self.targets is not None:
+            out["targets"] = self.targets
+        return out
+
+
+_DEFAULT_SETTINGS = LogSettings()
 
 
 @dataclass(frozen=True)
@@ -160,33 +286,142 @@ def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> None:
 
 def run_log(
     log: Log,
+    settings: LogSettings = _DEFAULT_SETTINGS,
     *,
-    poses: str | PoseSet = "still",
-    accel_sign: str = "specific-force",
-    mag_axes: str | None = None,
-    rate: float | None = None,
-    window: float | None = None,
-    min_still: float | None = None,
-    still_trim: float | None = None,
-    still_threshold: float | None = None,
-    method: str = "mle",
-    gyro: bool | None = None,
+    found: PoseSet | None = None,
     on_progress: Callable[[str], None] | None = None,
-    **options: Any,
 ) -> LogCalibration:
     """Find a log's poses and calibrate from them: the path of ``fieldcal calibrate``.
 
-    See :func:`calibrate_log` for the parameters. ``log`` is not modified: the axis map and the
-    accelerometer's sign apply to copies of its arrays.
+    Parameters
+    ----------
+    log : Log
+        As :func:`fieldcal.read_log` gives it; not modified (the axis map and the
+        accelerometer's sign apply to copies of its arrays).
+    settings : LogSettings
+        The detection, fit and trust settings (see :func:`calibrate_log` for each option;
+        ``settings.read`` is not used: the log is read).
+    found : PoseSet, optional
+        The poses, already found (``settings.detect.poses`` is then not used).
+    on_progress : callable, optional
+        Called with one line of text at each step.
+
+    Returns
+    -------
+    LogCalibration
     """
+    detect, fit = settings.detect, settings.fit
+    poses: str | PoseSet = detect.poses if found is None else found
+    accel_sign, mag_axes, method, gyro = fit.accel_sign, fit.mag_axes, fit.method, fit.gyro
+    rate = detect.rate
     if isinstance(poses, str):
-        _check_choice("poses", poses, POSE_SOURCES)
+        _check_choice("poses", poses, POSE_MODES)
     if gyro is True and log.gyro is None:  # before the long work
         raise InputError(
             "the gyroscope cannot be calibrated: the log has no gyroscope columns; name them "
             "with --gyro-cols"
         )
     _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
+    notes, P = _input_notes(log, mag_axes, accel_sign)
+    gravity_sign = accel_sign == "gravity"
+    tuned = [
+        name
+        for name, value in (
+            ("window", detect.window),
+            ("min_still", detect.min_still),
+            ("still_trim", detect.still_trim),
+            ("still_threshold", detect.still_threshold),
+        )
+        if value is not None
+    ]
+    if poses == "auto" and tuned:  # the still detector's options given: the user wants rests
+        poses = "still"
+        notes.append(
+            f"poses='auto': still detection, as its options were given ({', '.join(tuned)})"
+        )
+    why_not = _why_not_continuous(log, rate, gyro) if poses in ("auto", "continuous") else None
+    if poses == "continuous" and why_not is not None:
+        raise InputError(f"poses='continuous' (--poses continuous) needs {why_not}")
+    if poses == "continuous":
+        return _run_continuous(log, P, settings, notes, on_progress)
+    # the settings the poses are looked for with (None: given), for the advice on too few
+    detection: dict[str, Any] | None = None
+    if isinstance(poses, PoseSet):
+        found = poses
+    else:
+        if on_progress is not None:
+            on_progress(f"finding the poses in {log.path}")
+        # neither the map nor the sign moves a still interval: the poses are found in the
+        # readings as logged and the samples of each are mapped below
+        detection = detect.detector_keywords()
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                found = _find_poses(log, poses, detection, why_not)
+            moving = [w for w in caught if MOVING_RESTS in str(w.message)]
+            if poses == "auto" and why_not is None and moving:
+                raise InputError(str(moving[0].message))
+            for w in caught:  # the detector's own warnings, passed on
+                warnings.warn(w.message, w.category, stacklevel=2)
+            if poses == "auto":
+                _check_poses(found, method, log, rate, None if why_not is None else detection)
+        except InputError as exc:
+            if poses != "auto" or why_not is not None:
+                raise
+            why = "its rests move" if MOVING_RESTS in str(exc) else str(exc)
+            notes.append(
+                "poses='auto': calibrated from continuous motion, not from rests (still "
+                f"detection: {why}); the log has a gyroscope and time"
+            )
+            run = _run_continuous(log, P, settings, notes, on_progress)
+            if not run.calibration.converged:
+                # a log of a few rests the estimator cannot follow between them: what the
+                # user can act on is the rests' advice, not an estimate that never settled
+                raise InputError(
+                    f"{exc}; calibrating from the continuous motion instead (the log has a "
+                    "gyroscope and time) did not converge either"
+                ) from None
+            return run
+        if poses == "auto":
+            notes.append(f"poses='auto': calibrated from {found.n} rests found by still detection")
+    if P is not None and found.mag is not None:
+        found = dataclasses.replace(found, mag=[m @ P.T for m in found.mag])
+    if gravity_sign and found.accel is not None:
+        found = dataclasses.replace(found, accel=[-a for a in found.accel])
+    notes.append(_how_found(log, found))
+    _check_poses(found, method, log, rate, detection)
+    if on_progress is not None:
+        on_progress(f"calibrating {found.n} poses ({method})")
+    temperature = pose_temperature_samples(log, found.entries)
+    cal = calibrate_with(
+        found.accel,
+        found.mag,
+        fit,
+        settings.trust,
+        targets=settings.targets,
+        method_options=settings.method_options,
+        on_progress=on_progress,
+        time_ordered=found.time_ordered,  # samples, windows: error bars for correlated poses
+        temperature=temperature,
+    )
+    if gyro is not False:
+        # on the fit as made (before an axis map or sign is folded into it): the poses'
+        # orientation covariance comes from its noise model and gauge
+        if on_progress is not None and log.gyro is not None:
+            on_progress("calibrating the gyroscope from the motion between the poses")
+        cal = _gyro_stage(
+            log, found, cal, required=gyro is True, rate=rate, notes=notes, on_progress=on_progress
+        )
+    if P is not None and mag_axes is not None:
+        cal = fold_axes(cal, P, mag_axes)
+    if gravity_sign:
+        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
+    return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
+
+
+def _input_notes(log: Log, mag_axes: str | None, accel_sign: str) -> tuple[list[str], Array | None]:
+    """The notes on the input (columns, dropped rows, folded conventions) and the
+    magnetometer's axis map (``None``: none), each convention checked against the log."""
     notes = [
         "columns used: "
         + "; ".join(f"{role} = {','.join(cols)}" for role, cols in log.used.items())
@@ -203,8 +438,7 @@ def run_log(
             f"magnetometer axes mapped {mag_axes} for the fit and folded back into its gain: "
             "apply the result to the raw columns as logged"
         )
-    gravity_sign = accel_sign == "gravity"
-    if gravity_sign:
+    if accel_sign == "gravity":
         if log.accel is None:
             raise InputError("--accel-sign gravity given but the log has no accelerometer columns")
         notes.append(
@@ -212,41 +446,12 @@ def run_log(
             "negated readings and folded back into its gain, so the correction gives the "
             "specific force (+1 g up) from the raw columns as logged"
         )
-    if isinstance(poses, PoseSet):
-        found = poses
-    else:
-        if on_progress is not None:
-            on_progress(f"finding the poses in {log.path}")
-        # neither the map nor the sign moves a still interval: the poses are found in the
-        # readings as logged and the samples of each are mapped below
-        found = poses_from_log(
-            log,
-            poses=poses,
-            rate=rate,
-            window=window,
-            min_still=min_still,
-            trim=still_trim,
-            threshold=still_threshold,
-        )
-    if P is not None and found.mag is not None:
-        found = dataclasses.replace(found, mag=[m @ P.T for m in found.mag])
-    if gravity_sign and found.accel is not None:
-        found = dataclasses.replace(found, accel=[-a for a in found.accel])
-    notes.append(_how_found(log, found))
-    _check_poses(found, method, log, rate)
-    if on_progress is not None:
-        on_progress(f"calibrating {found.n} poses ({method})")
-    cal = calibrate(found.accel, found.mag, method=method, on_progress=on_progress, **options)
-    if gyro is not False:
-        # on the fit as made (before an axis map or sign is folded into it): the poses'
-        # orientation covariance comes from its noise model and gauge
-        if on_progress is not None and log.gyro is not None:
-            on_progress("calibrating the gyroscope from the motion between the poses")
-        cal = _gyro_stage(log, found, cal, required=gyro is True, rate=rate, notes=notes)
-    if P is not None and mag_axes is not None:
-        cal = fold_axes(cal, P, mag_axes)
-    if gravity_sign:
-        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
+    return notes, P
+
+
+def _with_pose_rows(cal: Calibration, found: PoseSet, log: Log) -> Calibration:
+    """``cal`` with every pose found (its rows in the log; ``rejected`` for one the robust fit
+    dropped) and the log's provenance (path, columns, device, rate)."""
     fitted = {int(row["index"]): row for row in cal.poses}
     dropped = {r.index: r for r in cal.rejected}
     rows = []
@@ -260,7 +465,125 @@ def run_log(
         provenance["device"] = log.device
     if found.rate is not None:  # the sample rate: noise densities (Kalibr) need it
         provenance["rate"] = float(found.rate)
-    cal = dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
+    return dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
+
+
+def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | None) -> PoseSet:
+    """:func:`poses_from_log`; when still detection finds no rest, the error says which other
+    settings find how many poses (not when ``poses='auto'`` goes on to continuous motion:
+    ``why_not`` None)."""
+    try:
+        return poses_from_log(log, poses="still" if poses == "auto" else poses, **detection)
+    except InputError as exc:
+        text = str(exc)
+        if NO_STILL not in text or (poses == "auto" and why_not is None):
+            raise
+        advice = pose_advice(log, **detection)
+        if advice is None:
+            raise
+        raise InputError(f"{text.split('; try ', 1)[0]}; {advice}") from None
+
+
+def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str | None:
+    """What the continuous estimator lacks in this log (``None``: nothing)."""
+    missing = [
+        what
+        for what, absent in (
+            ("accelerometer", log.accel is None),
+            ("magnetometer", log.mag is None),
+            ("gyroscope (--gyro-cols)", log.gyro is None),
+        )
+        if absent
+    ]
+    if missing:
+        return f"{' and '.join(missing)} columns"
+    if log.time is None and rate is None:
+        return "a time column (--time-col) or the sample rate (--rate)"
+    if gyro is False:
+        return "the gyroscope, but gyro=False (--no-gyro) was given"
+    return None
+
+
+def _run_continuous(
+    log: Log,
+    P: Array | None,
+    settings: LogSettings,
+    notes: list[str],
+    on_progress: Callable[[str], None] | None,
+) -> LogCalibration:
+    """The continuous-motion estimator on the whole log (:func:`fieldcal.methods.continuous.
+    fit_continuous`) and the shared trust path (:func:`fieldcal.trust.continuous_motion.
+    trust_continuous`: handedness, the reference, accuracy, verdict), the axis map and the
+    accelerometer's sign folded back as for poses."""
+    assert log.accel is not None and log.mag is not None and log.gyro is not None
+    fit, rate = settings.fit, settings.detect.rate
+    mag_axes, accel_sign = fit.mag_axes, fit.accel_sign
+    # checked before the long work, as calibrate_with checks them
+    reference, magnitudes = field_settings(fit, settings.trust)
+    gravity, field_strength = magnitudes["accel"], magnitudes["mag"]
+    targets = targets_for(settings.targets, settings.trust)
+    if log.time is not None and rate is None:
+        time = effective_time(log.time)
+    else:
+        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
+    unused = sorted(
+        k
+        for k, v in settings.given().items()
+        if k not in CONTINUOUS_OPTIONS
+        and k not in _LOG_OPTIONS
+        and v is not None
+        and v is not False
+        and v != "auto"
+    )
+    if unused:
+        notes.append(f"not used by the continuous estimator: {', '.join(unused)}")
+    accel = -log.accel if accel_sign == "gravity" else log.accel
+    mag = log.mag if P is None else log.mag @ P.T
+    if on_progress is not None:
+        on_progress(f"calibrating from continuous motion ({log.n} samples)")
+    try:
+        cal = fit_continuous(
+            time,
+            accel,
+            mag,
+            log.gyro,
+            rows=log.index,
+            gravity=gravity,
+            on_progress=on_progress,
+            temperature=log.temperature,
+        )
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
+        raise InputError(
+            "the continuous fit failed in floating point; check that the time column is in "
+            "seconds (or give --rate) and the gyroscope in rad/s"
+        ) from None
+    cal = cal.with_field_magnitudes(gravity, field_strength)
+    cal = trust_continuous(
+        cal,
+        mag_mirrored=bool(fit.mag_mirrored),
+        reference=reference,
+        dip_allowance_deg=float(settings.trust.dip_allowance_deg),
+        targets=targets,
+        magnitudes=magnitudes,
+    )
+    if P is not None and mag_axes is not None:
+        cal = fold_axes(cal, P, mag_axes)
+    if accel_sign == "gravity":
+        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
+    traj = cal.options["trajectory"]
+    notes.append(
+        f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "
+        f"{100 * traj['gravity_coverage']:.0f} % of gravity directions visited, "
+        f"{len(cal.options['downweighted'])} stretch(es) down-weighted for body acceleration"
+    )
+    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    if log.device is not None:
+        provenance["device"] = log.device
+    hz = float(rate) if rate is not None else log.rate
+    if hz is not None:
+        provenance["rate"] = float(hz)
+    cal = dataclasses.replace(cal, options={**cal.options, **provenance})
+    found = PoseSet(None, None, [], None, hz, source="continuous")
     return LogCalibration(cal, found, tuple(notes))
 
 
@@ -280,6 +603,7 @@ def _gyro_stage(
     required: bool,
     rate: float | None,
     notes: list[str],
+    on_progress: Callable[[str], None] | None = None,
 ) -> Calibration:
     """The gyroscope, fitted to the motion between the fitted poses (:func:`fieldcal.gyro.
     fit_gyro`): with both field sensors, to the rotations the joint fit found; with the
@@ -295,6 +619,11 @@ def _gyro_stage(
 
     if log.gyro is None:
         return skip("the log has no gyroscope columns; name them with --gyro-cols")
+    if found.source == "samples":
+        return skip(
+            "poses='samples' leaves no motion between the poses to integrate; use "
+            "poses='continuous' (--poses continuous) for a log with a gyroscope"
+        )
     if cal.accel is None:
         return skip("it needs the accelerometer (the gravity directions) to be calibrated")
     if log.time is not None and rate is None:
@@ -309,18 +638,34 @@ def _gyro_stage(
         return skip("the poses are not intervals of the log in time order (a pose column)")
     rows = [_log_rows(log, found.entries[i]) for i in kept]
     try:
-        C = pose_rotation_covariance(cal)
+        # the poses' rotation covariance in its structure: linear in the number of poses
+        C = pose_rotation_factors(cal)
         if cal.mag is not None and cal.magnetic is not None:
-            fit = fit_gyro(time, log.gyro, rows, cal.rotations, rotation_cov=C)
+            fit = fit_gyro(
+                time,
+                log.gyro,
+                rows,
+                cal.rotations,
+                rotation_cov=C,
+                on_progress=on_progress,
+            )
         else:
             gravity = cal.correct_accel(found.means("accel")[kept])
             # the directions' errors from the poses' tilts: blockdiag(−[g_i]×) C blockdiag(...)ᵀ
-            H = hat(gravity)
-            n = len(kept)
-            cov = np.einsum("iab,ibjc,jdc->iajd", H, C.reshape(n, 3, n, 3), H)
             fit = fit_gyro(
-                time, log.gyro, rows, gravity_body=gravity, gravity_cov=cov.reshape(3 * n, 3 * n)
+                time,
+                log.gyro,
+                rows,
+                gravity_body=gravity,
+                gravity_cov=C.transformed(hat(gravity)),
+                on_progress=on_progress,
             )
+        # the still poses' temperatures: the bias a polynomial in them, about the others' T_ref
+        temps = pose_temperature_samples(log, [found.entries[i] for i in kept])
+        if temps is not None:
+            refs = [s.temperature.reference for s in (cal.accel, cal.mag) if s and s.temperature]
+            means = [float(np.mean(t)) for t in temps]
+            fit = with_bias_temperature(fit, means, refs[0] if refs else None)
     except InputError as exc:
         return skip(str(exc))
     except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
@@ -368,7 +713,7 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
                 "residual_deg": float(residual),
             }
         )
-    how = {
+    how: dict[str, Any] = {
         "method": fit.method,
         "drift": fit.drift,
         "drift_p_value": fit.drift_p_value,
@@ -381,6 +726,8 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
         "p_value": fit.p_value,
         "widening": fit.widening,
     }
+    if fit.temperature_record:
+        how["temperature"] = fit.temperature_record
     return dataclasses.replace(
         cal,
         gyro=sensor,
@@ -392,7 +739,10 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
 
 def _how_found(log: Log, poses: PoseSet) -> str:
     at = f" at {poses.rate:.4g} Hz" if poses.rate else ""
-    if poses.windows is not None:
+    if poses.source == "samples":
+        per = poses.record()["samples_per_pose"]
+        how = f"one per sample{at}" if per == 1 else f"one per {per} samples{at}"
+    elif poses.windows is not None:
         cut = poses.windows
         length = f"{cut.seconds:.3g} s" if cut.seconds else f"{cut.window}-sample"
         how = (
@@ -418,7 +768,8 @@ def calibrate_log(
     time_col: str | None = None,
     pose_col: str | None = None,
     drop_nan: bool = False,
-    **options: Any,
+    on_progress: Callable[[str], None] | None = None,
+    **options: object,
 ) -> Calibration:
     """Calibrate from a log: read it, find its poses, fit, as ``fieldcal calibrate`` does.
 
@@ -428,9 +779,16 @@ def calibrate_log(
         The log (see :func:`fieldcal.read_log`).
     accel_cols, mag_cols, gyro_cols, time_col, pose_col, drop_nan
         Columns and missing values, as in :func:`fieldcal.read_log` (ignored for a ``Log``).
-    poses : {"still", "windows"}
-        How the log is cut into poses when it has no pose column: still detection (default),
-        or consecutive windows of ``window`` seconds for a log turned slowly with no rests.
+    poses : {"auto", "still", "windows", "samples", "continuous"}
+        How the log is calibrated when it has no pose column: ``"still"`` detection of rests,
+        consecutive ``"windows"`` of ``window`` seconds for a log turned slowly with no rests,
+        every ``"samples"`` its own pose (a slow log without a gyroscope, however sparse; a
+        dense one in short windows), the error bars of windows and samples widened for the
+        correlation measured between neighbouring poses (``cal.options["pose_correlation"]``),
+        ``"continuous"`` motion (:mod:`fieldcal.methods.continuous`: every sample, the
+        gyroscope tying the orientations together; needs a gyroscope and time), or
+        ``"auto"`` (default): still detection when the log has enough rests, else continuous
+        when it has a gyroscope and time, with a note saying which and why.
     accel_sign : {"specific-force", "gravity"}
         What the accelerometer reports: the specific force (+1 g on the up axis at rest,
         default) or gravity (−1 g up, some loggers); the result corrects to the specific force.
@@ -449,9 +807,15 @@ def calibrate_log(
         end (seconds, samples without a rate) and the accelerometer threshold (raw units).
     on_progress : callable, optional
         Called with one line of text at each step.
+    target_tilt, target_heading, target_norm : float, optional
+        The verdict's accuracy targets (degrees, degrees, percent), in place of those of
+        ``targets`` (default :class:`fieldcal.Targets`' values): ``--target-tilt`` ...
     **options
         Everything :func:`fieldcal.calibrate` takes: ``method``, ``gravity``,
-        ``field_strength``, ``noise``, ``pose_noise``, ``robust``, ``mag_mirrored``, ...
+        ``field_strength``, ``noise``, ``pose_noise``, ``robust``, ``mag_mirrored``,
+        ``targets``, ..., and the reader's options (:data:`fieldcal.settings.READ_OPTIONS`).
+        Each goes to its stage's settings object (:class:`LogSettings`); the defaults are the
+        option table's (:mod:`fieldcal.settings`).
 
     Returns
     -------
@@ -459,20 +823,14 @@ def calibrate_log(
         ``cal.poses`` lists every pose found, with its rows in the log and, for a pose the
         robust fit dropped, ``rejected``.
     """
-    reading = {k: options.pop(k) for k in READ_OPTIONS if k in options}
-    if options.get("on_progress") is not None:
-        reading["on_progress"] = options["on_progress"]
-    log = read_log(
-        source,
-        accel_cols=accel_cols,
-        mag_cols=mag_cols,
-        gyro_cols=gyro_cols,
-        time_col=time_col,
-        pose_col=pose_col,
-        drop_nan=drop_nan,
-        **reading,
-    )
-    return run_log(log, **options).calibration
+    columns: dict[str, object] = {"accel_cols": accel_cols, "mag_cols": mag_cols}
+    columns.update(gyro_cols=gyro_cols, time_col=time_col, pose_col=pose_col, drop_nan=drop_nan)
+    settings = LogSettings.of({**columns, **options})
+    reading = settings.read.keywords()
+    if on_progress is not None:
+        reading["on_progress"] = on_progress
+    log = read_log(source, **reading)
+    return run_log(log, settings, on_progress=on_progress).calibration
 
 
 def document(cal: Calibration, poses: PoseSet) -> dict[str, Any]:
@@ -481,6 +839,13 @@ def document(cal: Calibration, poses: PoseSet) -> dict[str, Any]:
     doc = cal.to_dict()
     if poses.detection is not None:
         doc["still_detection"] = poses.record()
+    elif poses.source == "samples":
+        doc["pose_samples"] = poses.record()
     elif poses.windows is not None:
         doc["pose_windows"] = poses.record()
+    elif poses.source == "continuous":
+        doc["continuous"] = {
+            **poses.record(),
+            **{k: cal.options[k] for k in ("trajectory", "motion", "downweighted")},
+        }
     return doc

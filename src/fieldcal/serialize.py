@@ -29,8 +29,10 @@ __all__ = ["SCHEMA", "SCHEMA_VERSION", "decode", "encode", "upgrade"]
 
 SCHEMA = "fieldcal.calibration"
 #: 2: derived values (standard errors, cost) are no longer read back; pose-level noise,
-#: verdict, rejected poses and accuracy added. Version 1 documents (fieldcal 0.1) still load.
-SCHEMA_VERSION = 2
+#: verdict, rejected poses and accuracy added. 3: each verdict reason is an object
+#: ``{"code", "level", "text"}`` (it was a sentence). 4: each sensor may carry ``temperature``
+#: (its bias against temperature; absent: none). Older documents still load.
+SCHEMA_VERSION = 4
 
 _MAX_POSES = 10_000_000
 
@@ -220,7 +222,63 @@ def _v1_to_v2(data: dict[str, object]) -> dict[str, object]:
     return out
 
 
-UPGRADES: dict[int, Callable[[dict[str, object]], dict[str, object]]] = {1: _v1_to_v2}
+#: Schema 2's verdict sentences → (code, level): a fragment each rule's fixed message had
+#: (fieldcal 0.2–0.3; frozen, as those files are). A sentence matching none becomes
+#: ``other`` with the verdict's level.
+_V2_REASONS: tuple[tuple[str, str, str], ...] = (
+    ("the optimiser did not converge", "not_converged", "fail"),
+    ("the poses barely determine the calibration", "degenerate", "fail"),
+    ("(more than a quarter)", "too_many_rejected", "fail"),
+    ("further pose(s) disagree with the model", "unidentifiable", "fail"),
+    ("affine copy of the accelerometer", "same_sensor", "fail"),
+    ("no rigid device at rest does that", "not_rigid", "fail"),
+    ("too uncertain to use", "unusable", "fail"),
+    ("dropped as disturbed", "rejected", "warn"),
+    ("were cut as not still", "trimmed", "warn"),
+    ("pose-to-pose error is", "pose_noise", "warn"),
+    ("cover the orientations poorly", "coverage", "warn"),
+    ("the dip came out negative", "negative_dip", "note"),
+    ("came out mirrored relative to the accelerometer", "reference_mirrored", "warn"),
+    ("--mag-mirrored was stated, but", "reference_unmirrored", "warn"),
+    ("to tell a mirrored magnetometer", "reference_undecided", "note"),
+    ("allowed for local anomalies", "reference_dip", "warn"),
+    ("likelihood is far below the optimum", "not_ml", "warn"),
+    ("the fit is implausible under the stated noise", "implausible", "warn"),
+)
+
+
+def _v2_reason(text: object, verdict_level: object) -> object:
+    if not isinstance(text, str):
+        return text  # left for the reader to refuse, naming the key
+    for fragment, code, level in _V2_REASONS:
+        if fragment in text:
+            return {"code": code, "level": level, "text": text}
+    plain = "note" if verdict_level == "pass" else verdict_level
+    return {"code": "other", "level": plain, "text": text}
+
+
+def _v2_to_v3(data: dict[str, object]) -> dict[str, object]:
+    """Schema 2 stored the verdict's reasons as sentences: each becomes ``{code, level, text}``
+    (:data:`_V2_REASONS`)."""
+    out = dict(data)
+    verdict = out.get("verdict")
+    if isinstance(verdict, dict) and isinstance(verdict.get("reasons"), list):
+        level = verdict.get("level")
+        reasons = [_v2_reason(r, level) for r in verdict["reasons"]]
+        out["verdict"] = {**verdict, "reasons": reasons}
+    return out
+
+
+def _v3_to_v4(data: dict[str, object]) -> dict[str, object]:
+    """Schema 3 had no temperature models: a sensor without one reads as before."""
+    return dict(data)
+
+
+UPGRADES: dict[int, Callable[[dict[str, object]], dict[str, object]]] = {
+    1: _v1_to_v2,
+    2: _v2_to_v3,
+    3: _v3_to_v4,
+}
 
 
 def upgrade(data: Mapping[str, object]) -> dict[str, object]:

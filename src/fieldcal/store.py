@@ -11,6 +11,7 @@ git or synced, and read without fieldcal.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from .calibration import Calibration
 from .comparison import Comparison, compare
 from .errors import InputError
 
-__all__ = ["DriftRow", "Store", "StoreEntry"]
+__all__ = ["DriftRow", "Store", "StoreEntry", "valid_device"]
 
 _DEVICE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 _STAMP = "%Y-%m-%dT%H%M%SZ"
@@ -38,14 +39,33 @@ class StoreEntry:
 
 @dataclass(frozen=True)
 class DriftRow:
-    """One calibration in a device's history, against the one before it (``None`` first)."""
+    """One calibration in a device's history, against the one before it (``None`` first, or
+    when the two cannot be compared: ``note`` then says why, e.g. different units)."""
 
     entry: StoreEntry
     calibration: Calibration
     since_previous: Comparison | None
+    note: str = ""
 
 
-def _device(device: object) -> str:
+def valid_device(device: object) -> str:
+    """A device id as the store files it: letters, digits, ``.``, ``_``, ``-`` (up to 100).
+
+    Parameters
+    ----------
+    device : object
+        The id to check.
+
+    Returns
+    -------
+    str
+        The id, unchanged.
+
+    Raises
+    ------
+    InputError
+        When it is not such a string, in one line.
+    """
     if not isinstance(device, str) or not _DEVICE.match(device):
         raise InputError(
             f"device id must be letters, digits, '.', '_' or '-' (up to 100, no spaces or "
@@ -95,7 +115,7 @@ class Store:
                 "no device id: the calibration's log did not name one (a '# device: ID' line "
                 "above its header); give device=ID (fieldcal store add --device ID)"
             )
-        folder = self.root / _device(device)
+        folder = self.root / valid_device(device)
         folder.mkdir(parents=True, exist_ok=True)
         stem = _when(cal.created or _dt.datetime.now(_dt.UTC)).strftime(_STAMP)
         path, k = folder / f"{stem}.json", 1
@@ -113,7 +133,7 @@ class Store:
 
     def entries(self, device: str) -> list[StoreEntry]:
         """A device's calibrations, oldest first."""
-        folder = self.root / _device(device)
+        folder = self.root / valid_device(device)
         out = []
         for path in folder.glob("*.json") if folder.is_dir() else ():
             stamp = path.stem.split("-")[0:3]
@@ -152,12 +172,23 @@ class Store:
     def drift(self, device: str, *, sigmas: float = 3.0) -> list[DriftRow]:
         """The device's calibrations in time order, each compared with the one before
         (:meth:`Calibration.compare`: the parameters that changed beyond ``sigmas`` combined
-        standard errors)."""
+        standard errors). Two that cannot be compared (made with different ``--gravity`` or
+        ``--field-strength``, or body frames) are listed all the same: the row's
+        ``since_previous`` is None and its ``note`` says why."""
+        if isinstance(sigmas, bool) or not (
+            isinstance(sigmas, (int, float)) and math.isfinite(sigmas) and sigmas > 0
+        ):
+            raise InputError(f"sigmas must be a positive number, got {sigmas!r}"[:200])
         rows: list[DriftRow] = []
         previous: Calibration | None = None
         for entry in self._entries(device):
             cal = self.load(entry)
-            since = None if previous is None else compare(previous, cal, sigmas=sigmas)
-            rows.append(DriftRow(entry, cal, since))
+            since, note = None, ""
+            if previous is not None:
+                try:
+                    since = compare(previous, cal, sigmas=sigmas)
+                except InputError as exc:  # different units: nothing to compare, still listed
+                    note = "not compared with the one before: " + str(exc).split(";")[0]
+            rows.append(DriftRow(entry, cal, since, note))
             previous = cal
         return rows

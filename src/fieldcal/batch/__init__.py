@@ -5,7 +5,7 @@
 and options, :mod:`~fieldcal.batch.job` is one log's work (read on the worker, calibrate,
 write ``<out>/<device>/cal.json`` atomically, return a summary row),
 :mod:`~fieldcal.batch.executors` runs the jobs here, in processes or on a Dask cluster, and
-:mod:`~fieldcal.batch.summary` is the table (``summary.csv``, ``summary.parquet``).
+:mod:`~fieldcal.batch.table` is the table (``summary.csv``, ``summary.parquet``).
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ from .. import api
 from ..calibration import Calibration
 from ..errors import InputError
 from ..output import exports as export_formats
-from ..pipeline import run_log
+from ..pipeline import LogSettings
+from ..settings import OPTIONS
 from .executors import default_jobs, run_dask, run_processes, run_sequential
-from .job import CAL_FILE, READ_OPTIONS, ROW_FILE, JobResult, Task, export_name, read_row
+from .job import CAL_FILE, ROW_FILE, JobResult, Task, export_name, read_row
 from .manifest import LogSpec, check_devices, expand_logs
-from .summary import COLUMNS, failed, to_arrow, to_pandas, write_summary
+from .table import COLUMNS, failed, to_arrow, to_pandas, write_summary
 
 __all__ = ["COLUMNS", "BatchResult", "LogSpec", "calibrate_many", "export_name"]
 
@@ -80,13 +81,12 @@ class BatchResult:
 
 
 def _allowed_options() -> set[str]:
-    names = set(READ_OPTIONS)
-    for function in (run_log, api.calibrate):
-        names |= {
-            p.name
-            for p in inspect.signature(function).parameters.values()
-            if p.kind is p.KEYWORD_ONLY or p.kind is p.POSITIONAL_OR_KEYWORD
-        }
+    """The option table's keywords and :func:`fieldcal.calibrate`'s."""
+    names = set(OPTIONS) | {
+        p.name
+        for p in inspect.signature(api.calibrate).parameters.values()
+        if p.kind is p.KEYWORD_ONLY or p.kind is p.POSITIONAL_OR_KEYWORD
+    }
     return names - set(_OWN)
 
 
@@ -110,7 +110,9 @@ def _done_before(folder: Path) -> dict[str, dict[str, Any]]:
     done: dict[str, dict[str, Any]] = {}
     for path in sorted(folder.glob(f"*/{ROW_FILE}")):
         row = read_row(path)
-        if row is not None and not row["error"] and (path.parent / CAL_FILE).is_file():
+        if row is None or row["error"] or row["export_error"]:
+            continue  # not done, or an export is still to write
+        if (path.parent / CAL_FILE).is_file():
             done.setdefault(row["log"], row)
     return done
 
@@ -147,7 +149,7 @@ def calibrate_many(
     created: str | None = None,
     keep_calibrations: bool = True,
     on_result: Callable[[Mapping[str, Any]], None] | None = None,
-    **options: Any,
+    **options: object,
 ) -> BatchResult:
     """Calibrate many logs, each on its own, with the same options: ``fieldcal batch``.
 
@@ -234,7 +236,7 @@ def calibrate_many(
                 index=i,
                 log=spec.log,
                 device=spec.device,
-                options={**options, **spec.options},
+                settings=LogSettings.of({**options, **spec.options}),
                 out=None if folder is None else str(folder),
                 exports=tuple(exports),
                 created=stamp,

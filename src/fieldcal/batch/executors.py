@@ -24,6 +24,7 @@ import concurrent.futures as cf
 import importlib
 import multiprocessing
 import os
+import socket
 from collections.abc import Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
@@ -32,7 +33,7 @@ from .._version import __version__
 from ..errors import InputError
 from .job import JobResult, Task, run_task
 from .manifest import fallback_device
-from .summary import error_row
+from .table import error_row
 
 __all__ = ["BLAS_ENV", "default_jobs", "run_dask", "run_processes", "run_sequential"]
 
@@ -193,6 +194,7 @@ def _client(scheduler: object) -> tuple[Any, bool]:
         return scheduler, False
     if not isinstance(scheduler, str) or not scheduler.strip():
         raise InputError(f"scheduler must be an address like tcp://HOST:8786, got {scheduler!r}")
+    _check_address(scheduler.strip())
     try:
         client = distributed.Client(scheduler, timeout="20s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -201,6 +203,47 @@ def _client(scheduler: object) -> tuple[Any, bool]:
             f"{' '.join(str(exc).split())[:200]}; check the address (tcp://HOST:PORT)"
         ) from None
     return client, True
+
+
+def _check_address(scheduler: str) -> None:
+    """The address parsed and its scheduler reached (a TCP port tried, 5 s at most; an
+    in-process one looked up) before a Dask client is made: a client that fails to connect
+    waits twice its timeout when it is collected and prints a traceback from
+    ``Client.__del__``, so a bad address never reaches one."""
+    addressing = importlib.import_module("distributed.comm.addressing")
+    shown = scheduler[:80]
+    network = ("tcp", "tls", "ws", "wss")
+    try:
+        scheme, location = addressing.parse_address(scheduler)  # "HOST:PORT" is tcp
+        host, port = addressing.parse_host_port(location) if scheme in network else ("", 0)
+        if scheme not in (*network, "inproc", "ucx"):
+            raise ValueError(f"unknown scheme {scheme!r}")
+    except (ValueError, TypeError) as exc:
+        raise InputError(
+            f"scheduler must be an address like tcp://HOST:8786, got {shown!r} "
+            f"({' '.join(str(exc).split())[:100]})"
+        ) from None
+    if scheme == "inproc":
+        manager = importlib.import_module("distributed.comm.inproc").global_manager
+        try:
+            found = manager.get_listener_for(location)
+        except (ValueError, AssertionError):
+            found = None
+        if found is None:
+            raise InputError(
+                f"no Dask scheduler in this process at {shown}; give a tcp://HOST:PORT address"
+            )
+        return
+    if scheme not in network:
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=5.0).close()
+    except (OSError, ValueError, OverflowError) as exc:
+        reason = getattr(exc, "strerror", None) or " ".join(str(exc).split())[:100]
+        raise InputError(
+            f"could not connect to the Dask scheduler at {shown}: {reason}; is it running? "
+            "check the address (tcp://HOST:PORT)"
+        ) from None
 
 
 def run_dask(tasks: Sequence[Task], scheduler: object) -> Iterator[JobResult]:

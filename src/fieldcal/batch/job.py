@@ -40,13 +40,13 @@ from ..calibration import Calibration
 from ..errors import InputError
 from ..logs import Log, load_log
 from ..output import exports as export_formats
-from ..pipeline import document, run_log
+from ..pipeline import LogSettings, document, run_log
+from ..settings import ReadSettings
 from .manifest import device_id, fallback_device
-from .summary import COLUMN_TYPES, error_row, row_for
+from .table import COLUMN_TYPES, error_row, row_for
 
 __all__ = [
     "CRASH_ENV",
-    "READ_OPTIONS",
     "JobResult",
     "Task",
     "export_name",
@@ -54,19 +54,6 @@ __all__ = [
     "run_task",
 ]
 
-#: Options that go to the reader (:func:`fieldcal.logs.load_log`), not to the calibration.
-READ_OPTIONS = (
-    "accel_cols",
-    "mag_cols",
-    "gyro_cols",
-    "time_col",
-    "pose_col",
-    "drop_nan",
-    "decimal",
-    "split_on_reset",
-    "imu_topic",
-    "mag_topic",
-)
 
 #: Testing only: a log whose file name this variable lists (``a.csv,b.csv:once``) makes its
 #: worker process die (``os._exit``), as an out-of-memory kill would; ``NAME:once`` dies on the
@@ -89,8 +76,9 @@ class Task:
         Path or fsspec URL, read on the worker.
     device : str or None
         The device id a manifest gives; else the log's own, else its file stem.
-    options : dict
-        Reading and calibration options (:func:`fieldcal.calibrate_many`'s keywords).
+    settings : LogSettings
+        How to read and calibrate the log: the batch's options with the manifest row's in
+        their place, built once (:meth:`fieldcal.pipeline.LogSettings.of`).
     out : str or None
         The batch's folder (on a file system every worker sees), or ``None`` to write nothing.
     exports : tuple of str
@@ -108,7 +96,7 @@ class Task:
     index: int
     log: str
     device: str | None
-    options: dict[str, Any] = field(default_factory=dict)
+    settings: LogSettings = field(default_factory=LogSettings)
     out: str | None = None
     exports: tuple[str, ...] = ()
     created: str = ""
@@ -164,8 +152,8 @@ def _local_copy(url: str) -> Iterator[str]:
             os.unlink(name)
 
 
-def _read(log: str, options: Mapping[str, Any]) -> Log:
-    reading = {k: v for k, v in options.items() if v is not None and v is not False}
+def _read(log: str, read: ReadSettings) -> Log:
+    reading = read.keywords()
     if "://" not in log:
         loaded: Log = load_log(log, **reading)
         return loaded
@@ -215,12 +203,6 @@ def _message(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _split(options: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
-    reading = {k: v for k, v in options.items() if k in READ_OPTIONS}
-    running = {k: v for k, v in options.items() if k not in READ_OPTIONS}
-    return reading, running
-
-
 def run_task(task: Task) -> JobResult:
     """Calibrate one log and write its files: see the module's docstring.
 
@@ -237,19 +219,19 @@ def run_task(task: Task) -> JobResult:
     device = task.device or fallback_device(task.log)
     try:
         _crash_for_test(task.log)
-        reading, running = _split(task.options)
         with _blas_one_thread(), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            log = _read(task.log, reading)
+            log = _read(task.log, task.settings.read)
             if task.device is None and log.device is not None:
                 device = device_id(log.device)
-            run = run_log(log, **running)
+            run = run_log(log, task.settings)
         cal = dataclasses.replace(run.calibration, created=task.created or run.calibration.created)
         warned = [
             " ".join(str(w.message).split()) for w in caught if w.category is not RuntimeWarning
         ]
+        export_error = ""
         if task.out is not None:
-            _write(task, device, cal, document(cal, run.poses))
+            export_error = _write(task, device, cal, document(cal, run.poses))
         row = row_for(
             cal,
             device=device,
@@ -259,6 +241,7 @@ def run_task(task: Task) -> JobResult:
             version=__version__,
             warned=list(dict.fromkeys(warned)),
         )
+        row["export_error"] = export_error
         if task.out is not None:
             _files.write_text(Path(task.out) / device / ROW_FILE, _row_json(row))
         return JobResult(task.index, row, cal if task.keep else None)
@@ -273,7 +256,9 @@ def run_task(task: Task) -> JobResult:
         return JobResult(task.index, row)
 
 
-def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> None:
+def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> str:
+    """Write ``cal.json`` and the exports; returns the exports' errors as one line (empty when
+    every export was written): a failed export never hides the calibration's row."""
     folder = Path(str(task.out)) / device
     _claim(folder, device, task)
     # row.json goes last (run_task): without it the log counts as not done, so a batch killed
@@ -281,8 +266,13 @@ def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> No
     with contextlib.suppress(FileNotFoundError):
         (folder / ROW_FILE).unlink()
     _files.write_text(folder / CAL_FILE, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    errors = []
     for fmt in task.exports:
-        _files.write_bytes(folder / export_name(fmt), export_formats.export_bytes(cal, fmt))
+        try:
+            _files.write_bytes(folder / export_name(fmt), export_formats.export_bytes(cal, fmt))
+        except (ValueError, OSError) as exc:  # InputError is a ValueError
+            errors.append(f"{fmt}: {_message(exc)}")
+    return " | ".join(errors)
 
 
 # ----------------------------------------------------------------------------- device folders

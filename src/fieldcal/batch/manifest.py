@@ -20,9 +20,9 @@ folder names as :mod:`fieldcal.store` allows them (letters, digits, ``.``, ``_``
 from __future__ import annotations
 
 import csv
+import functools
 import glob
 import importlib
-import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -32,10 +32,9 @@ from typing import Any
 from urllib.parse import urlparse
 
 from ..errors import InputError
-from ..geometry.frames import ACCEL_SIGNS
-from ..logs.poses import POSE_SOURCES
 from ..methods import METHODS
-from ..store import _device
+from ..settings import OPTIONS, Option, parse
+from ..store import valid_device
 
 __all__ = [
     "OPTION_COLUMNS",
@@ -46,9 +45,6 @@ __all__ = [
     "fallback_device",
     "read_manifest",
 ]
-
-#: Largest magnitude taken for a number in a manifest (its square stays a finite double).
-_BIG = 1e150
 
 
 @dataclass(frozen=True)
@@ -111,125 +107,35 @@ def device_id(text: str) -> str:
     str
     """
     clean = re.sub(r"[^A-Za-z0-9._-]+", "_", text.strip()).lstrip("._-")[:100]
-    return _device(clean or "log")
+    return valid_device(clean or "log")
 
 
 # ----------------------------------------------------------------------------- option columns
-def _text(value: str) -> str:
-    return value
+def _cell_parser(option: Option) -> Callable[[str], Any]:
+    """The parser of an option's cells: :func:`fieldcal.settings.parse`; a method's name is
+    checked against the registry."""
+    if option.name == "method":
+        allowed = tuple(METHODS)
+
+        def method(value: str) -> str:
+            if value not in allowed:
+                raise ValueError(f"give one of {', '.join(allowed)}")
+            return value
+
+        return method
+    return functools.partial(parse, option)
 
 
-def _choice(choices: Iterable[str]) -> Callable[[str], str]:
-    allowed = tuple(choices)
-
-    def parse(value: str) -> str:
-        if value not in allowed:
-            raise ValueError(f"give one of {', '.join(allowed)}")
-        return value
-
-    return parse
-
-
-def _number(low: float, high: float, *, low_open: bool = True) -> Callable[[str], float]:
-    def parse(value: str) -> float:
-        try:
-            number = float(value)
-        except ValueError:
-            raise ValueError("give a number") from None
-        below = number <= low if low_open else number < low
-        if not math.isfinite(number) or below or number > high:
-            side = "above" if low_open else "at least"
-            raise ValueError(f"give a number {side} {low:g} and at most {high:g}")
-        return number
-
-    return parse
-
-
-_POSITIVE = _number(0.0, 1e12)
-_NON_NEGATIVE = _number(0.0, 1e12, low_open=False)
-_MAGNITUDE = _number(1 / _BIG, _BIG, low_open=False)
-
-
-def _flag(value: str) -> bool:
-    word = value.lower()
-    if word in ("1", "true", "yes", "y", "on"):
-        return True
-    if word in ("0", "false", "no", "n", "off"):
-        return False
-    raise ValueError("give true or false")
-
-
-def _field_strength(value: str) -> float | str:
-    if value.lower() in ("wmm", "wmm:ut", "wmm:nt"):
-        return value
-    return _MAGNITUDE(value)
-
-
-def _per_sensor(value: str, one: Callable[[str], Any], example: str) -> Any | dict[str, Any]:
-    if "=" not in value:
-        return one(value)
-    out: dict[str, Any] = {}
-    for part in value.split(","):
-        key, _, text = part.partition("=")
-        key = key.strip().lower()
-        if key not in ("accel", "mag"):
-            raise ValueError(f"{key!r} is not a sensor; name accel and/or mag, e.g. {example}")
-        out[key] = one(text.strip())
-    return out
-
-
-def _noise(value: str) -> float | dict[str, float]:
-    parsed: float | dict[str, float] = _per_sensor(value, _MAGNITUDE, "accel=0.01,mag=0.2")
-    return parsed
-
-
-def _pose_noise_one(value: str) -> str | float:
-    if value.lower() in ("auto", "none"):
-        return value.lower()
-    return _number(0.0, _BIG, low_open=False)(value)
-
-
-def _pose_noise(value: str) -> str | float | dict[str, str | float]:
-    parsed: str | float | dict[str, str | float] = _per_sensor(
-        value, _pose_noise_one, "accel=0.01,mag=auto"
-    )
-    return parsed
-
-
-#: The per-log option columns a manifest may have: column name (as the command's option
-#: without its dashes, ``_`` for ``-``) -> (keyword of :func:`fieldcal.calibrate_many`,
-#: parser of the cell's text). ``no_robust`` is special: it turns robust fitting and the
-#: trimming of bumps off together, as ``--no-robust`` does.
+#: The per-log option columns a manifest may have, one per command-line option of
+#: :data:`fieldcal.settings.OPTIONS`: column name (the command's option without its dashes,
+#: ``_`` for ``-``) -> (keyword of :func:`fieldcal.calibrate_many`, parser of the cell's
+#: text). ``no_robust`` turns robust fitting and the trimming of bumps off together, as
+#: ``--no-robust`` does; ``target_tilt``, ``target_heading``, ``target_norm`` set the
+#: verdict's accuracy targets for that log.
 OPTION_COLUMNS: dict[str, tuple[str, Callable[[str], Any]]] = {
-    "accel_cols": ("accel_cols", _text),
-    "mag_cols": ("mag_cols", _text),
-    "gyro_cols": ("gyro_cols", _text),
-    "time_col": ("time_col", _text),
-    "pose_col": ("pose_col", _text),
-    "drop_nan": ("drop_nan", _flag),
-    "decimal": ("decimal", _choice([".", ","])),
-    "split_on_reset": ("split_on_reset", _flag),
-    "imu_topic": ("imu_topic", _text),
-    "mag_topic": ("mag_topic", _text),
-    "rate": ("rate", _POSITIVE),
-    "min_still": ("min_still", _POSITIVE),
-    "window": ("window", _POSITIVE),
-    "trim": ("still_trim", _NON_NEGATIVE),
-    "still_threshold": ("still_threshold", _MAGNITUDE),
-    "poses": ("poses", _choice(POSE_SOURCES)),
-    "method": ("method", _choice(METHODS)),
-    "gravity": ("gravity", _MAGNITUDE),
-    "field_strength": ("field_strength", _field_strength),
-    "location": ("location", _text),
-    "date": ("date", _text),
-    "dip_allowance": ("dip_allowance_deg", _number(0.0, 89.0, low_open=False)),
-    "noise": ("noise", _noise),
-    "pose_noise": ("pose_noise", _pose_noise),
-    "no_robust": ("robust", _flag),
-    "mag_axes": ("mag_axes", _text),
-    "accel_sign": ("accel_sign", _choice(ACCEL_SIGNS)),
-    "gyro": ("gyro", _flag),
-    "mag_mirrored": ("mag_mirrored", _flag),
+    option.column: (option.name, _cell_parser(option))
+    for option in OPTIONS.values()
+    if option.on_command_line
 }
 
 
@@ -249,8 +155,8 @@ def _row_options(cells: Mapping[str, str], where: str) -> dict[str, Any]:
             raise InputError(
                 f"{where}, column {column}: {text!r} is not understood; {exc}"
             ) from None
-        if column == "no_robust":
-            if value:
+        if keyword == "robust":
+            if not value:
                 options.update(robust=False, trim=False)
             continue
         options[keyword] = value
@@ -324,7 +230,7 @@ def read_manifest(path: Path) -> list[LogSpec]:
         device = values.pop("device", "") or None
         if device is not None:
             try:
-                device = _device(device)
+                device = valid_device(device)
             except InputError as exc:
                 raise InputError(f"{where}, column device: {exc}") from None
         specs.append(LogSpec(log, device, _row_options(values, where), where))

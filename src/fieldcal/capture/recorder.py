@@ -5,6 +5,11 @@ system at least every :data:`FLUSH_SECONDS` and every :data:`FLUSH_LINES` lines,
 process leaves what it had) and :meth:`Recorder.close` renames it to ``FOLDER/log.csv``
 (after an fsync: the rename is atomic and durable).
 
+A write that fails (a full disk, a device gone) is an :class:`~fieldcal.errors.InputError`
+naming the file and the fix, raised by the next :meth:`Recorder.feed` (the flushing thread
+only records it: no traceback from a thread); :meth:`Recorder.close` then leaves the file as
+``log.csv.partial``, holding what was written.
+
 The file is a CSV that ``fieldcal calibrate FOLDER/log.csv`` reads back as exactly the table
 the :class:`~fieldcal.logs.stream.LineParser` kept (same names, same floats):
 
@@ -125,6 +130,7 @@ class Recorder:
         self._header_written = False
         self._lines = 0
         self._closed = False
+        self._failed: OSError | None = None  # a write that failed, from any thread
         self._stop = threading.Event()
         self._flusher = threading.Thread(
             target=self._flush_every, args=(float(flush_seconds),), daemon=True
@@ -133,8 +139,9 @@ class Recorder:
 
     @property
     def path(self) -> Path:
-        """The file being written (``log.csv.partial``), or ``log.csv`` once closed."""
-        return self.final if self._closed else self.partial
+        """The file being written (``log.csv.partial``), or ``log.csv`` once closed (unless a
+        write failed)."""
+        return self.final if self._closed and self._failed is None else self.partial
 
     @property
     def lines(self) -> int:
@@ -151,7 +158,7 @@ class Recorder:
         arrival : float
             Seconds since the capture started.
         partial : bool
-            The source marked the line as possibly cut (:class:`~fieldcal.capture.sources.
+            The source marked the line as possibly cut (:class:`~fieldcal.capture.feeds.
             PartialLine`).
 
         Returns
@@ -176,12 +183,29 @@ class Recorder:
             when = arrival_text(arrival, parser.decimal)
             out = f"# skipped {parser.last_reason} at {when}: {escape(text, parser.decimal)}\n"
         with self._lock:
-            self._file.write(out)
-            self._lines += 1
-            self._unflushed += 1
-            if self._unflushed >= self._flush_lines:
-                self._flush()
+            if self._failed is None:
+                try:
+                    self._file.write(out)
+                    self._lines += 1
+                    self._unflushed += 1
+                    if self._unflushed >= self._flush_lines:
+                        self._flush()
+                except OSError as exc:
+                    self._failed = exc
+            if self._failed is not None:
+                raise InputError(self.failure or "")
         return kept
+
+    @property
+    def failure(self) -> str | None:
+        """What went wrong writing the file, with the fix (None: nothing)."""
+        if self._failed is None:
+            return None
+        why = self._failed.strerror or " ".join(str(self._failed).split())[:100]
+        return (
+            f"{self.partial}: cannot be written ({why}); free some space or give another "
+            "--out folder (the lines written until then are kept in it)"
+        )
 
     def _columns_header(self) -> str:
         """The header line of a bare-number stream (written once, before its first row)."""
@@ -195,36 +219,68 @@ class Recorder:
     def _flush_every(self, seconds: float) -> None:
         while not self._stop.wait(seconds):
             with self._lock:
+                if self._failed is not None:
+                    return  # feed says so
                 if self._unflushed and not self._file.closed:
-                    self._flush()
+                    try:
+                        self._flush()
+                    except OSError as exc:  # a full disk: recorded, never a thread's traceback
+                        self._failed = exc
+                        return
 
     def flush(self) -> None:
-        """Flush what was written to the operating system now."""
+        """Flush what was written to the operating system now.
+
+        Raises
+        ------
+        InputError
+            The file cannot be written (see :attr:`failure`).
+        """
         with self._lock:
-            if not self._file.closed:
-                self._flush()
+            if self._failed is None and not self._file.closed:
+                try:
+                    self._flush()
+                except OSError as exc:
+                    self._failed = exc
+            if self._failed is not None:
+                raise InputError(self.failure or "")
 
     def close(self) -> Path:
         """Flush, fsync and rename ``log.csv.partial`` to ``log.csv``; idempotent.
 
         A stream of bare numbers that sent no data line still gets its header line, so the
-        file names its columns.
+        file names its columns. When a write failed (:attr:`failure`) the file is closed as
+        it is and keeps its name ``log.csv.partial``: it lacks the lines after the failure.
 
         Returns
         -------
         Path
-            ``FOLDER/log.csv``.
+            ``FOLDER/log.csv`` (``FOLDER/log.csv.partial`` after a failed write).
         """
         if self._closed:
-            return self.final
+            return self.path
         self._stop.set()
         self._flusher.join()
         with self._lock:
-            if not self._header_written and self.parser.header_line is None and self.parser.names:
-                self._file.write(self._columns_header())
-            self._file.flush()
-            os.fsync(self._file.fileno())
-            self._file.close()
+            try:
+                if self._failed is None:
+                    if (
+                        not self._header_written
+                        and self.parser.header_line is None
+                        and self.parser.names
+                    ):
+                        self._file.write(self._columns_header())
+                    self._file.flush()
+                    os.fsync(self._file.fileno())
+            except OSError as exc:
+                self._failed = exc
+            try:
+                self._file.close()
+            except OSError as exc:  # the buffer's last flush
+                self._failed = self._failed or exc
+        if self._failed is not None:
+            self._closed = True  # the file keeps its name: it is incomplete
+            return self.partial
         os.replace(self.partial, self.final)
         fsync_folder(self.folder)
         self._closed = True

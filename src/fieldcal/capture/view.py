@@ -23,12 +23,15 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from ..calibration import Calibration
 from ..geometry.orientations import orientation_from_vectors
 from ..geometry.rotations import rotation_angle_deg
-from ..trust.plan import predicted_line
-from .session import CaptureSession, Event, calibration_line
+from ..methods.continuous import MIN_SECONDS
+from ..planning.next_pose import predicted_line
+from ..planning.warmer_poses import temperature_advice, temperature_span_line
+from .live_session import CaptureSession, Event, calibration_line
 
-__all__ = ["LiveView", "PlainView", "coverage_map", "key_reader"]
+__all__ = ["LiveView", "PlainView", "coverage_map", "key_reader", "temperature_lines"]
 
 Array = NDArray[np.float64]
 
@@ -123,6 +126,8 @@ class LiveView:
     def render(self, session: CaptureSession) -> Group:
         parts: list[Any] = [self._title(session), self._now(session)]
         captured = [(np.array(m.down), m.rejected is not None) for m in session.poses]
+        if session.motion is not None:  # --poses continuous: the directions visited so far
+            captured += [(-np.asarray(up), False) for up in session.motion["visited"]]
         down_now = self._down_now(session)
         target = None if session.next_pose is None else session.next_pose.down
         parts.append(
@@ -162,7 +167,7 @@ class LiveView:
             return None
         cal = None if session.run is None else session.run.calibration
         up = cal.correct_accel(accel[None])[0] if cal is not None and cal.accel else accel
-        if session.options.calibration.get("accel_sign") == "gravity" and cal is None:
+        if session.options.settings.fit.accel_sign == "gravity" and cal is None:
             up = -up
         norm = float(np.linalg.norm(up))
         return None if norm == 0 else -up / norm
@@ -180,6 +185,9 @@ class LiveView:
             norm = float(np.linalg.norm(field))
             if norm > 0:
                 lines.append("magnetic field in the body frame:   " + _vector(field / norm))
+        temperature = latest.get("temperature")
+        if temperature is not None and np.isfinite(temperature[0]):
+            lines.append(f"temperature {float(temperature[0]):.1f} °C")
         state = session.state
         if state.still_seconds is not None:
             lines.append(f"still for {state.still_seconds:.1f} s")
@@ -211,6 +219,8 @@ class LiveView:
         if run is None:
             need = session.need()
             text = f"{len(session.poses)} of the {need} poses a calibration needs"
+            if session.continuous:
+                text = f"a calibration from the motion once it lasts {MIN_SECONDS:g} s"
             return Panel(Text(text), title="calibration")
         cal = run.calibration
         line = calibration_line(cal, run.poses.n, session.options.targets)
@@ -219,10 +229,23 @@ class LiveView:
         )
         body = Text(line, style=style)
         if cal.verdict is not None and cal.verdict.reasons:
-            body.append("\n" + "\n".join(cal.verdict.reasons[:3]), style="")
+            body.append("\n" + "\n".join(r.text for r in cal.verdict.reasons[:3]), style="")
         if session.floor_note:
             body.append("\n" + session.floor_note)
+        for line in temperature_lines(cal):
+            body.append("\n" + line)
         return Panel(body, title="calibration")
+
+
+def temperature_lines(cal: Calibration) -> list[str]:
+    """The temperature span the captured poses cover and, when it limits the temperature
+    terms, the advice to repeat a pose when warmer (nothing without a temperature column)."""
+    record = cal.options.get("temperature")
+    if not isinstance(record, dict):
+        return []
+    line = temperature_span_line(record)
+    advice = temperature_advice(cal)
+    return [text for text in (None if line is None else "temperature: " + line, advice) if text]
 
 
 def _vector(v: Array) -> str:

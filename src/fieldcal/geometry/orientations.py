@@ -1,6 +1,6 @@
 """Orientations a person can reproduce by hand, each with the words that say how.
 
-The candidates an experiment design chooses from (``fieldcal.trust.plan``) are a fixed set:
+The candidates an experiment design chooses from (``fieldcal.planning.next_pose``) are a fixed set:
 the down direction (gravity) in the body frame is one of
 
 - the 6 **faces**: one axis pointing straight down or straight up;

@@ -13,6 +13,7 @@ __all__ = [
     "exp_so3",
     "hat",
     "log_so3",
+    "ordered_products",
     "project_to_so3",
     "random_rotations",
     "rotation_angle_deg",
@@ -124,3 +125,16 @@ def wahba(
         weights = np.ones(body.shape[:-1])
     B = np.einsum("...k,...ki,...kj->...ij", weights, body, world)
     return project_to_so3(B)
+
+
+def ordered_products(steps: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Chained rotations: ``c_i = S_i S_{i−1} … S_0`` for every ``i`` of ``steps`` (n, 3, 3),
+    later steps on the left (a world → body rotation advanced step by step), by a log-depth
+    (Hillis–Steele) scan of matrix products: ``log₂ n`` vectorised rounds instead of ``n``
+    Python-level products."""
+    c = np.array(steps, dtype=float)
+    d = 1
+    while d < len(c):
+        c[d:] = c[d:] @ c[:-d]
+        d *= 2
+    return c

@@ -166,18 +166,36 @@ def quaternion_multiply(p: Array, q: Array) -> Array:
     )
 
 
+#: Steps composed one after another within a block of the scan (vectorised across blocks).
+SCAN_BLOCK = 64
+
+
 def cumulative_quaternions(steps: Array) -> Array:
     """Inclusive ordered products ``c_k = s_k ⊗ … ⊗ s_0`` of step quaternions (m, 4).
 
-    Hillis-Steele scan: after the pass with stride ``d`` each ``c_k`` holds the product of the
-    ``2d`` steps ending at ``k``; ``⌈log₂ m⌉`` passes of one vectorised product each."""
+    A blocked scan, linear work: the steps in blocks of :data:`SCAN_BLOCK`, composed in order
+    within every block at once (one vectorised product per position), the blocks' totals
+    scanned (Hillis-Steele: after the pass with stride ``d`` each holds the product of the
+    ``2d`` totals ending at it), then each block carried by the product of those before it."""
     c = np.array(steps, dtype=float)
-    d = 1
     m = len(c)
-    while d < m:
-        c[d:] = quaternion_multiply(c[d:], c[:-d])
-        d *= 2
-    # keep them unit (round-off of the log₂ m products)
+    if m > 2 * SCAN_BLOCK:
+        nb = -(-m // SCAN_BLOCK)
+        flat = np.empty((nb * SCAN_BLOCK, 4))
+        flat[:m] = c
+        flat[m:] = (1.0, 0.0, 0.0, 0.0)
+        blocks = flat.reshape(nb, SCAN_BLOCK, 4)
+        for j in range(1, SCAN_BLOCK):
+            blocks[:, j] = quaternion_multiply(blocks[:, j], blocks[:, j - 1])
+        before = cumulative_quaternions(blocks[:-1, -1])  # products of the whole blocks
+        blocks[1:] = quaternion_multiply(blocks[1:], before[:, None, :])
+        c = blocks.reshape(-1, 4)[:m]
+    else:
+        d = 1
+        while d < m:
+            c[d:] = quaternion_multiply(c[d:], c[:-d])
+            d *= 2
+    # keep them unit (round-off of the products)
     c /= np.linalg.norm(c, axis=-1, keepdims=True)
     return c
 

@@ -12,7 +12,7 @@ from ..geometry.frames import parse_axes
 from .apply import apply_to_file
 from .columns import recognise_columns
 from .log import Log, load_log, sample_rate
-from .poses import PoseSet, WindowCut, poses_from_log, turns_slowly
+from .pose_finding import PoseSet, WindowCut, poses_from_log, turns_slowly
 from .readers import Table, read_table
 
 __all__ = [

@@ -9,22 +9,28 @@ an error or Ctrl-C half-way leaves the previous output untouched and no fragment
   the header, the line endings, a byte-order mark) and the calibrated values follow each data
   line (and the names the header line, a ``#`` header included). Each chunk is vectorised:
   numpy's C parser reads the sensors' fields, the calibration runs on all rows at once and the
-  values are formatted in one pass; a chunk numpy would not read exactly as the csv module
-  (quotes, mixed line endings, a bad value) is done line by line, which names the problem.
+  values are formatted in one pass (by pyarrow, in bulk, for chunks of :data:`ARROW_MIN_ROWS`
+  rows or more; the same text as ``repr``); a chunk numpy would not read exactly as the csv
+  module (quotes, mixed line endings, a bad value) is done line by line, which names the
+  problem.
 - Otherwise the table is read in its own types and written whole: Parquet keeps its schema
   (column types and metadata), NPZ each array as it was (dtype and shape; an ``(n, 3)`` sensor
   array gets an ``(n, 3)`` ``<name>_cal``), and columns written as text keep their full
   precision (the shortest text that reads back as the same value of their type).
 
 Calibrated values are doubles; as text, the shortest text that reads back as the same double
-(with a decimal comma in a log written with decimal commas).
-pyarrow (Parquet) loads only when a Parquet file is read or written.
+(with a decimal comma in a log written with decimal commas). A calibration whose biases have
+temperature terms (``cal.<sensor>.temperature``) is applied with each row's temperature, from
+the log's temperature column (recognised by name, or ``temp_col``) or one given
+``temperature``; without either it is refused (the bias at the reference temperature alone
+would be a silent error).
+pyarrow loads only when a Parquet file is read or written, or a large text log is formatted.
 """
 
 from __future__ import annotations
 
 import csv
-import importlib
+import functools
 import importlib.util
 import io
 import itertools
@@ -43,6 +49,7 @@ from numpy.typing import NDArray
 
 from .._files import replacing, same_file
 from ..errors import InputError
+from .arrow_parser import pyarrow_module
 from .columns import explicit_columns, recognise_columns
 from .readers import Table, npz_table, read_table, to_float
 from .rosbag import is_bag, read_bag
@@ -51,7 +58,7 @@ from .text import HEAD_LINES, _split, layout, parse_numbers
 if TYPE_CHECKING:
     from ..calibration import Calibration
 
-__all__ = ["CHUNK_ROWS", "apply_to_file", "check_pyarrow", "output_format"]
+__all__ = ["ARROW_MIN_ROWS", "CHUNK_ROWS", "apply_to_file", "check_pyarrow", "output_format"]
 
 Array = NDArray[np.float64]
 
@@ -60,6 +67,9 @@ Array = NDArray[np.float64]
 CHUNK_ROWS = 100_000
 #: Seconds between two progress reports.
 PROGRESS_SECONDS = 1.0
+#: Chunks of at least this many data rows have their calibrated values formatted by pyarrow
+#: (where it is installed; its import, about 0.1 s, would cost more on a small log).
+ARROW_MIN_ROWS = 20_000
 
 _PARQUET = (".parquet", ".pq")
 _NPZ = ".npz"
@@ -104,8 +114,11 @@ def check_pyarrow(*paths: str | Path) -> None:
 
 
 def _parquet() -> tuple[ModuleType, ModuleType]:
-    """pyarrow and pyarrow.parquet: the one place this module loads them."""
-    return importlib.import_module("pyarrow"), importlib.import_module("pyarrow.parquet")
+    """pyarrow and pyarrow.parquet (:func:`check_pyarrow` has checked they are installed)."""
+    pa, pq = pyarrow_module(), pyarrow_module("pyarrow.parquet")
+    if pa is None or pq is None:
+        raise InputError(f"Parquet needs pyarrow, which is not installed; {_INSTALL}")
+    return pa, pq
 
 
 def apply_to_file(
@@ -120,6 +133,8 @@ def apply_to_file(
     decimal: str | None = None,
     imu_topic: str | None = None,
     mag_topic: str | None = None,
+    temp_col: str | None = None,
+    temperature: float | None = None,
 ) -> dict[str, list[str]]:
     """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``.
 
@@ -144,11 +159,17 @@ def apply_to_file(
     imu_topic, mag_topic : str, optional
         A ROS bag's topics (:func:`~fieldcal.logs.rosbag.read_bag`): its table (``t``,
         ``ax``.., ``gx``.., ``mx``..) is written with the calibrated columns.
+    temp_col : str, optional
+        The temperature column (°C), for a calibration with temperature terms (default:
+        recognised by name, as ``calibrate`` does).
+    temperature : float, optional
+        One temperature (°C) for every row, instead of a column.
 
     Returns
     -------
     dict of str -> list of str
-        The columns used per sensor.
+        The columns used per sensor (and ``"temperature"``: the temperature column, when the
+        calibration's terms were applied with one).
 
     Raises
     ------
@@ -163,9 +184,10 @@ def apply_to_file(
     check_pyarrow(src, dst)
     sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
     columns = {"accel": accel_cols, "mag": mag_cols}
+    thermal = _Thermal(cal, sensors, temp_col, temperature)
     if is_bag(src):  # (a rosbag2 bag is a folder)
         bag = read_bag(src, imu_topic=imu_topic, mag_topic=mag_topic, on_progress=on_progress)
-        return _apply_table(cal, src, dst, sensors, columns, table=bag)
+        return _apply_table(cal, src, dst, sensors, columns, table=bag, thermal=thermal)
     try:
         mode = src.stat().st_mode
     except FileNotFoundError:
@@ -179,13 +201,84 @@ def apply_to_file(
     if output_format(src) == output_format(dst) == "text":
         try:
             return _apply_text(
-                cal, src, dst, sensors, columns, chunk_rows or CHUNK_ROWS, on_progress, decimal
+                cal,
+                src,
+                dst,
+                sensors,
+                columns,
+                chunk_rows or CHUNK_ROWS,
+                on_progress,
+                decimal,
+                thermal,
             )
         except UnicodeDecodeError:
             raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
         except csv.Error as exc:
             raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
-    return _apply_table(cal, src, dst, sensors, columns, decimal)
+    return _apply_table(cal, src, dst, sensors, columns, decimal, thermal=thermal)
+
+
+@dataclass(frozen=True)
+class _Thermal:
+    """A calibration's temperature terms as apply needs them: which sensors have terms, the
+    column asked for, or one temperature for every row."""
+
+    cal: Calibration
+    sensors: list[str]
+    column: str | None
+    constant: float | None
+
+    def __post_init__(self) -> None:
+        if self.column is not None and not isinstance(self.column, str):
+            raise InputError(f"temp_col must be a column name, got {self.column!r}")
+        if self.constant is not None and not (
+            isinstance(self.constant, (int, float)) and np.isfinite(self.constant)
+        ):
+            raise InputError(f"temperature must be a number (deg C), got {self.constant!r}")
+
+    @property
+    def needed(self) -> list[str]:
+        """The sensors whose biases have temperature terms."""
+        out = []
+        for s in self.sensors:
+            model = getattr(self.cal, s).temperature
+            if model is not None and model.order > 0:
+                out.append(s)
+        return out
+
+    def find(self, path: str, header: list[str]) -> str | None:
+        """The temperature column to read (None: none needed, or the constant given)."""
+        needed = self.needed
+        if not needed or self.constant is not None:
+            return None
+        found = recognise_columns(header).get("temperature")
+        name = self.column or (found[0] if found else None)
+        if name is None:
+            raise InputError(
+                f"{path}: the calibration's {' and '.join(needed)} bias depends on temperature "
+                "but the log has no temperature column; name it with --temp-col, or give one "
+                "temperature for every row with --temperature"
+            )
+        if name not in header:
+            raise InputError(f"{path}: no column {name!r}; columns found: {', '.join(header)}")
+        return name
+
+    def values(self, t: Array | None, name: str | None = None) -> Array | float | None:
+        """The temperatures for a chunk of rows: the column's (checked), the constant, or
+        None."""
+        if t is None:
+            return self.constant
+        if not np.all(np.isfinite(t)):
+            row = int(np.argmin(np.isfinite(t)))
+            raise InputError(
+                f"the temperature column {name!r} has a value that is not a finite number "
+                f"({t[row]!r}, {row + 1}. row of a chunk); fix the log or give --temperature"
+            )
+        return t
+
+
+def _reported(used: dict[str, list[str]], temp: str | None) -> dict[str, list[str]]:
+    return used if temp is None else {**used, "temperature": [temp]}
 
 
 # ----------------------------------------------------------------------------- shared
@@ -203,16 +296,28 @@ def _columns_for_apply(
             continue
         missing = [c for c in cols if c not in header]
         if missing:
-            raise InputError(
-                f"{path}: no column {missing[0]!r}; columns found: {', '.join(header)}"
-            )
+            raise InputError(f"{path}: no column {missing[0]!r}; columns found: {_shown(header)}")
         used[sensor] = cols
     if not used:
         raise InputError(
             f"{path}: no columns for the calibrated sensors ({', '.join(sensors)}) among "
-            f"{', '.join(header)}; pass --accel-cols/--mag-cols"
+            f"{_shown(header)}; pass --accel-cols/--mag-cols"
         )
     return used
+
+
+#: A message shows at most this many characters of a file's header.
+SHOWN = 80
+
+
+def _shown(header: Sequence[str]) -> str:
+    """The header's names for a message: control characters escaped, cut after
+    :data:`SHOWN` characters (a file of NUL bytes is one 10,000-character name)."""
+    text = ", ".join(header)
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text[: SHOWN * 4])
+    if len(text) > SHOWN:
+        return f"{text[:SHOWN]}... ({len(header)} column(s))"
+    return text
 
 
 def _check_new(path: str, existing: Sequence[str], new: Sequence[str]) -> None:
@@ -224,8 +329,12 @@ def _check_new(path: str, existing: Sequence[str], new: Sequence[str]) -> None:
         )
 
 
-def _correct(cal: Calibration, sensor: str, raw: Array) -> Array:
-    return cal.correct_accel(raw) if sensor == "accel" else cal.correct_mag(raw)
+def _correct(
+    cal: Calibration, sensor: str, raw: Array, temperature: Array | float | None = None
+) -> Array:
+    if sensor == "accel":
+        return cal.correct_accel(raw, temperature)
+    return cal.correct_mag(raw, temperature)
 
 
 def _text(values: NDArray[Any]) -> list[str]:
@@ -264,6 +373,9 @@ class _Text:
     sep: str
     where: dict[str, list[int]]
     used: dict[str, list[str]]
+    thermal: _Thermal
+    temp_index: int | None = None
+    temp_name: str | None = None
 
 
 def _apply_text(
@@ -275,6 +387,7 @@ def _apply_text(
     chunk_rows: int,
     on_progress: Callable[[str], None] | None,
     decimal: str | None,
+    thermal: _Thermal,
 ) -> dict[str, list[str]]:
     size = max(src.stat().st_size, 1)
     with (
@@ -309,7 +422,9 @@ def _apply_text(
             names = buffer.getvalue()
         out.write(f"{body}{sep}{names}{ending or chr(10)}")
 
-        job = _Text(cal, src, delimiter, found.decimal, sep, where, used)
+        temp_name = thermal.find(str(src), header)
+        index = None if temp_name is None else header.index(temp_name)
+        job = _Text(cal, src, delimiter, found.decimal, sep, where, used, thermal, index, temp_name)
         lines = itertools.chain(head[found.start :], handle)
         rows_done, last = 0, time.monotonic()
         chars = sum(len(line) for line in head[: found.start])
@@ -322,7 +437,7 @@ def _apply_text(
             if on_progress is not None and now - last >= PROGRESS_SECONDS:
                 last = now
                 on_progress(f"apply: {rows_done:,} rows ({min(100 * chars / size, 100):.0f} %)")
-    return used
+    return _reported(used, temp_name)
 
 
 def _chunk(job: _Text, chunk: list[str], first_row: int) -> tuple[str, int]:
@@ -368,6 +483,8 @@ def _fast_chunk(job: _Text, joined: str) -> tuple[str, int] | None:
     if not data:
         return joined, 0
     idx = [i for cols in job.where.values() for i in cols]
+    if job.temp_index is not None:  # the rows' temperatures, last
+        idx.append(job.temp_index)
     numbers = parse_numbers(
         [line.replace(",", ".") for line in data] if job.decimal == "," else data,
         job.delimiter,
@@ -375,25 +492,93 @@ def _fast_chunk(job: _Text, joined: str) -> tuple[str, int] | None:
     )
     if numbers is None or len(numbers) != len(data):
         return None
-    values: list[list[float]] = []
+    fixed: list[Array] = []
     k = 0
+    t = job.thermal.values(numbers[:, -1] if job.temp_index is not None else None, job.temp_name)
     for sensor, cols in job.where.items():
-        raw = numbers[:, k : k + len(cols)]
-        values += _correct(job.cal, sensor, raw).T.tolist()
+        fixed += list(_correct(job.cal, sensor, numbers[:, k : k + len(cols)], t).T)
         k += len(cols)
-    tail = (job.sep + "%r") * len(values)  # repr: the shortest text of the same double
-    if mask is None and job.decimal == ".":  # one format per line, the line's text included
-        text = eol.join(map(("%s" + tail).__mod__, zip(pieces, *values, strict=True)))
-        return text + (eol if ended else ""), len(data)
-    tails = list(map(tail.__mod__, zip(*values, strict=True)))
-    if job.decimal == ",":
-        tails = [t.replace(".", ",") for t in tails]
+    tails = _bulk_tails(fixed, job.sep, job.decimal) if len(data) >= ARROW_MIN_ROWS else None
+    if tails is None:
+        values = [column.tolist() for column in fixed]
+        tail = (job.sep + "%r") * len(values)  # repr: the shortest text of the same double
+        if mask is None and job.decimal == ".":  # one format per line, the line's text included
+            text = eol.join(map(("%s" + tail).__mod__, zip(pieces, *values, strict=True)))
+            return text + (eol if ended else ""), len(data)
+        tails = list(map(tail.__mod__, zip(*values, strict=True)))
+        if job.decimal == ",":
+            tails = [t.replace(".", ",") for t in tails]
     if mask is None:
         text = eol.join(map(str.__add__, pieces, tails))
     else:
         it = iter(tails)
         text = eol.join(p + next(it) if m else p for p, m in zip(pieces, mask, strict=True))
     return text + (eol if ended else ""), len(data)
+
+
+def _bulk_tails(columns: list[Array], sep: str, decimal: str) -> list[str] | None:
+    """Each row's ``sep value sep value ...``, the values formatted as Python's ``repr`` writes
+    them (the shortest text of the same double) but in bulk by pyarrow; None without it.
+
+    pyarrow's shortest digits are Python's; its layout is too for a number written with a
+    point and no exponent between 1e-4 and 1e16 (where ``repr`` writes no exponent). The rest
+    (zeros and whole numbers, exponents, NaN, infinities) is written by ``repr``. Arrays and
+    scalars are made from their buffers: ``pyarrow.array`` and ``pyarrow.scalar`` would import
+    pandas, a second's work on a busy machine.
+    """
+    pa, pc = pyarrow_module(), pyarrow_module("pyarrow.compute")
+    if pa is None or pc is None or not _formats_as_repr():
+        return None
+    return _arrow_tails(pa, pc, columns, sep, decimal)
+
+
+#: Doubles on which pyarrow's layout is checked against ``repr`` before it is used.
+_PROBES = (0.1, -2.5, 1 / 3, 123.456, 1e-4, 0.00012345678901234, 9.87654321e15, 6.02e15, 2 / 3e3)
+
+
+@functools.cache
+def _formats_as_repr() -> bool:
+    """Whether this pyarrow writes doubles as ``repr`` does where :func:`_bulk_tails` takes
+    its text (another version might not: then ``repr`` writes every value)."""
+    pa, pc = pyarrow_module(), pyarrow_module("pyarrow.compute")
+    probes = np.array(_PROBES)
+    tails = _arrow_tails(pa, pc, [probes], ",", ".")
+    return tails == ["," + repr(v) for v in _PROBES]
+
+
+def _arrow_tails(pa: Any, pc: Any, columns: list[Array], sep: str, decimal: str) -> list[str]:
+    texts = []
+    for column in columns:
+        column = np.ascontiguousarray(column, dtype=np.float64)
+        n = len(column)
+        text = pc.cast(pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(column)]),
+                       pa.string())  # fmt: skip
+        with np.errstate(invalid="ignore"):
+            size = np.abs(column)
+            far = (size < 1e-4) | ~(size < 1e16)  # (NaN too)
+        bits = pa.py_buffer(np.packbits(far, bitorder="little"))
+        odd = pa.Array.from_buffers(pa.bool_(), n, [None, bits])
+        odd = pc.or_(odd, pc.invert(pc.match_substring(text, ".")))
+        odd = pc.or_(odd, pc.match_substring(text, "e"))
+        where = pc.indices_nonzero(odd).to_pylist()
+        if where:
+            again = _strings(pa, list(map(repr, column[where].tolist())))
+            text = pc.replace_with_mask(text, odd, again)
+        texts.append(text)
+    # (an empty first piece: a leading separator)
+    joined = pc.binary_join_element_wise(_strings(pa, [""])[0], *texts, _strings(pa, [sep])[0])
+    if decimal == ",":
+        joined = pc.replace_substring(joined, ".", ",")
+    tails: list[str] = joined.to_pylist()
+    return tails
+
+
+def _strings(pa: ModuleType, texts: list[str]) -> Any:
+    """A pyarrow string array of ASCII ``texts``, made from its buffers."""
+    offsets = np.zeros(len(texts) + 1, dtype=np.int32)
+    np.cumsum([len(t) for t in texts], out=offsets[1:])
+    data = pa.py_buffer("".join(texts).encode("ascii"))
+    return pa.Array.from_buffers(pa.string(), len(texts), [None, pa.py_buffer(offsets), data])
 
 
 def _tails(job: _Text, chunk: list[tuple[str, str, bool]], first_row: int) -> list[str]:
@@ -410,6 +595,17 @@ def _tails(job: _Text, chunk: list[tuple[str, str, bool]], first_row: int) -> li
             "apply copies the file line by line: write the log as .npz or .parquet"
         )
     texts: list[list[str]] = []
+    read: Array | None = None
+    if job.temp_index is not None and job.temp_name is not None:
+        i = job.temp_index
+        if any(len(r) <= i for r in rows):
+            short = next(k for k, r in enumerate(rows) if len(r) <= i)
+            raise InputError(
+                f"{src}: data row {first_row + short + 1} has too few fields; fix the file"
+            )
+        column = np.array([r[i] for r in rows], dtype=str)
+        read = to_float(column, job.temp_name, str(src), first_row, decimal=job.decimal)
+    t = job.thermal.values(read, job.temp_name)
     for sensor, idx in job.where.items():
         try:
             raw = np.array([[r[i] for i in idx] for r in rows], dtype=str)
@@ -424,7 +620,7 @@ def _tails(job: _Text, chunk: list[tuple[str, str, bool]], first_row: int) -> li
                 for k in range(3)
             ]
         )
-        texts += [_text(column) for column in _correct(job.cal, sensor, values).T]
+        texts += [_text(column) for column in _correct(job.cal, sensor, values, t).T]
     tails = [job.sep.join(fields) for fields in zip(*texts, strict=True)]
     return [t.replace(".", ",") for t in tails] if job.decimal == "," else tails
 
@@ -461,6 +657,7 @@ def _apply_table(
     decimal: str | None = None,
     *,
     table: Table | None = None,
+    thermal: _Thermal,
 ) -> dict[str, list[str]]:
     """The calibrated columns through a table read whole (``table``: one already read)."""
     fmt_in, fmt_out = output_format(src), output_format(dst)
@@ -485,10 +682,13 @@ def _apply_table(
     else:
         table = read_table(src, decimal=decimal)
     used = _columns_for_apply(table.path, table.names, sensors, columns)
+    temp_name = thermal.find(table.path, table.names)
+    t = thermal.values(None if temp_name is None else table.numeric(temp_name), temp_name)
     fixed = {
-        sensor: _correct(cal, sensor, np.column_stack([table.numeric(c) for c in cols]))
+        sensor: _correct(cal, sensor, np.column_stack([table.numeric(c) for c in cols]), t)
         for sensor, cols in used.items()
     }
+    reported = _reported(used, temp_name)
     new: dict[str, Array] = {
         f"{c}_cal": column
         for sensor, cols in used.items()
@@ -510,7 +710,7 @@ def _apply_table(
             out = {**table.columns, **new}
         with replacing(dst) as temp:
             _write_npz(temp, out, compressed)
-        return used
+        return reported
     if fmt_in == "npz":
         _only_columns(src, arrays)
     if fmt_out == "parquet":
@@ -521,7 +721,7 @@ def _apply_table(
             arrow = arrow.append_column(name, pa.array(column, type=pa.float64()))
         with replacing(dst) as temp:
             pq.write_table(arrow, str(temp))
-        return used
+        return reported
     delimiter = "\t" if dst.suffix.lower() == ".tsv" else ","
     names = [*table.names, *new]
     texts = [_text(table.columns[name]) for name in table.names] + [_text(v) for v in new.values()]
@@ -529,7 +729,7 @@ def _apply_table(
         writer = csv.writer(handle, delimiter=delimiter, lineterminator="\n")
         writer.writerow(names)
         writer.writerows(zip(*texts, strict=True))
-    return used
+    return reported
 
 
 def _sensor_array(arrays: dict[str, NDArray[Any]], cols: list[str]) -> str | None:

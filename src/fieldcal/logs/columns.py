@@ -19,7 +19,17 @@ from collections.abc import Collection, Sequence
 
 from ..errors import InputError
 
-__all__ = ["SPELLINGS", "explicit_columns", "normalise", "recognise_columns", "sensor_like_triples"]
+__all__ = [
+    "DEVICE_WORDS",
+    "LABEL_WORDS",
+    "SPELLINGS",
+    "explicit_columns",
+    "incomplete_sensors",
+    "label_columns",
+    "normalise",
+    "recognise_columns",
+    "sensor_like_triples",
+]
 
 # Prefix spellings per sensor, longest first so "accel_x" is not read as "a" + "ccel_x". An
 # underscore inside a prefix is optional ("magneticField.x" -> "magneticfield_x").
@@ -90,6 +100,15 @@ _TIME_RE = re.compile(
     r"(?:_.*)?$"
 )
 _POSE_NAMES = ("pose", "pose_id", "pose_label", "label")
+#: Words in a column's name that may label poses (``shot``, ``pose_no``, ``Position``) or the
+#: device a row comes from: such columns are kept beside the readings (:func:`label_columns`)
+#: for the advice when too few poses are found.
+LABEL_WORDS = frozenset({"shot", "pose", "position", "orientation", "label", "station", "face"})
+DEVICE_WORDS = frozenset({"device", "serial", "board", "instrument", "unit"})
+#: A die temperature in °C: temp, temperature, t_degc, imu_temp, temp_c, die_temperature ...
+_TEMP_RE = re.compile(
+    r"^(?:[a-z0-9_]*_)?(?:temp|temperature|t_degc|degc|celsius)(?:_(?:c|degc|deg_c|celsius))?$"
+)
 
 #: The spellings understood, in short, for messages.
 SPELLINGS = (
@@ -134,9 +153,9 @@ def recognise_columns(names: Sequence[str]) -> dict[str, list[str]]:
     """Guess each role's columns from their names.
 
     Returns a dict with keys among ``accel``, ``mag``, ``gyro`` (three names each, x, y, z),
-    ``time`` and ``pose`` (one name each). Columns of one sensor share a device prefix, a
-    sensor prefix and a suffix (``ax_g, ay_g, az_g``); the first complete x/y/z triple of a
-    sensor in column order wins.
+    ``time``, ``pose`` and ``temperature`` (one name each). Columns of one sensor share a
+    device prefix, a sensor prefix and a suffix (``ax_g, ay_g, az_g``); the first complete
+    x/y/z triple of a sensor in column order wins.
     """
     found: dict[str, list[str]] = {}
     normalised = [normalise(name) for name in names]
@@ -151,11 +170,52 @@ def recognise_columns(names: Sequence[str]) -> dict[str, list[str]]:
                 found[sensor] = [axes["x"], axes["y"], axes["z"]]
                 break
     for name, norm in zip(names, normalised, strict=True):
+        if "temperature" not in found and _TEMP_RE.match(norm):
+            found["temperature"] = [name]
+            continue  # t_degc is not a time
         if "time" not in found and _TIME_RE.match(norm):
             found["time"] = [name]
         if "pose" not in found and norm in _POSE_NAMES:
             found["pose"] = [name]
     return found
+
+
+def incomplete_sensors(
+    names: Sequence[str], found: Collection[str] = ()
+) -> dict[str, tuple[list[str], str]]:
+    """Accelerometer and magnetometer (not in ``found``) of which two axes are recognised by
+    name but the third is missing (``ay, az`` without ``ax``): ``{sensor: (the two names, the
+    missing axis)}``. One axis alone is not counted (``az`` may be an azimuth)."""
+    out: dict[str, tuple[list[str], str]] = {}
+    for sensor in ("accel", "mag"):
+        if sensor in found:
+            continue
+        groups: dict[tuple[str, str, str], dict[str, str]] = {}
+        for name in names:
+            hit = _match(sensor, normalise(name))
+            if hit is not None:
+                groups.setdefault(hit[0], {}).setdefault(hit[1], name)
+        for axes in groups.values():
+            if len(axes) == 2:
+                missing = next(a for a in "xyz" if a not in axes)
+                out[sensor] = ([axes[a] for a in "xyz" if a in axes], missing)
+                break
+    return out
+
+
+def label_columns(names: Sequence[str], exclude: Collection[str] = (), limit: int = 8) -> list[str]:
+    """Columns not in ``exclude`` whose name holds a word of :data:`LABEL_WORDS` or
+    :data:`DEVICE_WORDS` (``shot``, ``pose_no``, ``device``) and is not one axis of a triple
+    (``position_x``), at most ``limit`` of them, in column order."""
+    skip = set(exclude)
+    found = []
+    for name in names:
+        words = normalise(name).split("_")
+        if name in skip or words[-1] in ("x", "y", "z", "0", "1", "2"):
+            continue
+        if (LABEL_WORDS | DEVICE_WORDS).intersection(words):
+            found.append(name)
+    return found[:limit]
 
 
 def sensor_like_triples(names: Sequence[str], exclude: Collection[str] = ()) -> list[list[str]]:

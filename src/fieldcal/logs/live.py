@@ -1,6 +1,6 @@
 """Still poses of a growing stream: the offline detector, rerun as samples arrive.
 
-The offline detector (:func:`fieldcal.logs.poses.poses_from_log`) sets its threshold from the
+The offline detector (:func:`fieldcal.logs.pose_finding.poses_from_log`) sets its threshold from the
 noise floor of the whole log, so no pose it finds is final until the log ends. The live form
 runs that same detector on everything received so far, and calls a pose *settled* once the
 device has moved away from it for longer than the detector looks around a sample (a window and
@@ -30,7 +30,7 @@ from typing import Any
 
 from ..errors import InputError
 from .log import Log
-from .poses import PoseSet, poses_from_log
+from .pose_finding import PoseSet, poses_from_log
 
 __all__ = ["LiveDetector", "LiveState", "leading_poses"]
 
@@ -85,7 +85,7 @@ def leading_poses(poses: PoseSet, k: int) -> PoseSet:
 
 
 class LiveDetector:
-    """Runs :func:`~fieldcal.logs.poses.poses_from_log` on a growing log.
+    """Runs :func:`~fieldcal.logs.pose_finding.poses_from_log` on a growing log.
 
     Parameters
     ----------

@@ -36,18 +36,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from .columns import SPELLINGS, explicit_columns, normalise, recognise_columns, sensor_like_triples
+from ..limits import LARGEST  # checked here so the message names the row and column
+from .columns import (
+    SPELLINGS,
+    explicit_columns,
+    incomplete_sensors,
+    label_columns,
+    normalise,
+    recognise_columns,
+    sensor_like_triples,
+)
 from .readers import Table, read_table
 from .rosbag import is_bag, read_bag
 
 __all__ = ["LARGEST", "PAUSE", "Log", "load_log", "sample_rate"]
 
 Array = NDArray[np.float64]
-
-#: Largest reading accepted: its square (a covariance entry) must stay a finite float64. The
-#: same limit as :data:`fieldcal.stats.poses.LARGEST` (a test keeps them equal), checked
-#: here so the message can name the row and the column.
-LARGEST = 1e150
 
 #: A time step longer than this many typical steps is a pause of the logger, left out of the
 #: sample rate. Bursts are at most a few typical steps apart, pauses (a logger writing its
@@ -60,6 +64,7 @@ _ROLE_NAMES = {
     "gyro": "the gyroscope",
     "time": "the time",
     "pose": "the pose labels",
+    "temperature": "the temperature",
 }
 
 
@@ -91,6 +96,12 @@ class Log:
     notes: list[str] = field(default_factory=list)
     segment: NDArray[np.int64] | None = None
     metadata: dict[str, str] = field(default_factory=dict)
+    #: the die temperature of each kept row, °C (``temp``, ``temperature``, ``t_degc`` ...)
+    temperature: Array | None = None
+    #: other columns that may label poses or devices (``shot``, ``position``, ``device``; see
+    #: :func:`~fieldcal.logs.columns.label_columns`), each kept row's value: the advice when
+    #: too few poses are found tries them
+    labels: dict[str, NDArray[np.generic]] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -352,6 +363,8 @@ def load_log(
     drop_nan: bool = False,
     split_on_reset: bool = False,
     need: Sequence[str] = ("accel", "mag"),
+    temp_col: str | None = None,
+    sensors: str | None = None,
     **reading: Any,
 ) -> Log:
     """Read a log and pick its sensor columns.
@@ -376,11 +389,82 @@ def load_log(
         the one before.
     need : sequence of str
         The roles of which at least one must be found (by default accelerometer or magnetometer).
+    temp_col : str, optional
+        The temperature column (°C); ``temp``, ``temperature``, ``t_degc`` ... are recognised.
+        One with NaN/inf or implausible values is left out, with a note.
+    sensors : {None, "accel", "mag", "both"}
+        Which of accelerometer and magnetometer to read: ``"accel"`` or ``"mag"`` alone (the
+        other's columns are left out), ``"both"`` (either missing is an error), or None:
+        those recognised, but a sensor with two of its axes recognised and the third missing
+        (``ay, az`` without ``ax``) is an error naming the column, unless the column options
+        name the other sensor only (``--accel-cols`` alone: the accelerometer is wanted).
     **reading
         Options of the file reader, passed on when not ``None``: ``decimal`` and
         ``on_progress`` for text logs, ``imu_topic`` and ``mag_topic`` (and ``on_progress``)
         for ROS bags (:func:`fieldcal.logs.rosbag.read_bag`); ignored for a table already read.
     """
+    _check_load_options(drop_nan, split_on_reset, need, time_col, pose_col)
+    if temp_col is not None and not isinstance(temp_col, str):
+        raise InputError(f"temp_col must be a column name, got {temp_col!r}")
+    if sensors not in (None, "accel", "mag", "both"):
+        raise InputError(f"sensors must be 'accel', 'mag' or 'both', got {sensors!r}"[:200])
+    table = _open_table(path, reading)
+    used = _pick_columns(table, accel_cols, mag_cols, gyro_cols, time_col, pose_col, need, temp_col)
+    used = _chosen_sensors(table, used, sensors, accel_cols is not None, mag_cols is not None)
+    # one (n, 3) array per sensor, stacked once; rows are selected only when some are dropped
+    data: dict[str, Array] = {
+        role: np.column_stack([table.numeric(c) for c in used[role]])
+        for role in ("accel", "mag", "gyro")
+        if role in used
+    }
+    time = table.numeric(used["time"][0]) if "time" in used else None
+    pose = table.columns[used["pose"][0]] if "pose" in used else None
+    data, time, pose, index, n_bad = _finite_rows(table, used, data, time, pose, drop_nan)
+    _check_values(table, used, data, index)
+    notes: list[str] = list(getattr(table, "notes", ()))
+    segment = None
+    if time is not None:
+        time, segment, time_notes = _time_axis(time, used["time"][0], index, table, split_on_reset)
+        notes += time_notes
+    temperature = None
+    if "temperature" in used:
+        name = used["temperature"][0]
+        temperature = table.numeric(name)[index]
+        if not (np.isfinite(temperature).all() and np.all(np.abs(temperature) < 300)):
+            notes.append(f"temperature column {name!r} has NaN/inf or implausible values: ignored")
+            temperature = None
+    taken = [c for cols in used.values() for c in cols]
+    labels = {
+        name: table.columns[name] if index.size == table.n_rows else table.columns[name][index]
+        for name in label_columns(table.names, exclude=taken)
+    }
+    return Log(
+        path=table.path,
+        accel=data.get("accel"),
+        mag=data.get("mag"),
+        gyro=data.get("gyro"),
+        time=time,
+        pose=pose,
+        index=index,
+        used=used,
+        names=table.names,
+        dropped=n_bad,
+        notes=notes,
+        segment=segment,
+        metadata=dict(getattr(table, "metadata", {})),
+        temperature=temperature,
+        labels=labels,
+    )
+
+
+def _check_load_options(
+    drop_nan: object,
+    split_on_reset: object,
+    need: Sequence[str],
+    time_col: object,
+    pose_col: object,
+) -> None:
+    """The one-line errors for options of the wrong kind."""
     if not isinstance(drop_nan, (bool, np.bool_)):
         raise InputError(f"drop_nan must be True or False, got {drop_nan!r}")
     if not isinstance(split_on_reset, (bool, np.bool_)):
@@ -390,19 +474,35 @@ def load_log(
     for label, name in (("time_col", time_col), ("pose_col", pose_col)):
         if name is not None and not isinstance(name, str):
             raise InputError(f"{label} must be a column name, got {name!r}")
+
+
+def _open_table(path: str | Path | Table, reading: dict[str, Any]) -> Table:
+    """The table of ``path`` (a ROS bag, a file by its suffix, or a table already read)."""
     options = {k: v for k, v in reading.items() if v is not None}
     topics = {k: options.pop(k) for k in ("imu_topic", "mag_topic") if k in options}
     if isinstance(path, Table):
-        table = path
-    elif is_bag(path):  # before read_table: a rosbag2 bag is a folder
-        table = read_bag(path, on_progress=options.get("on_progress"), **topics)
-    elif topics:
+        return path
+    if is_bag(path):  # before read_table: a rosbag2 bag is a folder
+        return read_bag(path, on_progress=options.get("on_progress"), **topics)
+    if topics:
         raise InputError(
             f"{path}: --imu-topic/--mag-topic are for ROS bags (.bag, .mcap, .db3 or a rosbag2 "
             "folder); leave them out for this log"
         )
-    else:
-        table = read_table(path, **options)
+    return read_table(path, **options)
+
+
+def _pick_columns(
+    table: Table,
+    accel_cols: str | Sequence[str] | None,
+    mag_cols: str | Sequence[str] | None,
+    gyro_cols: str | Sequence[str] | None,
+    time_col: str | None,
+    pose_col: str | None,
+    need: Sequence[str],
+    temp_col: str | None = None,
+) -> dict[str, list[str]]:
+    """The columns of each role: given, else recognised by name; checked."""
     guessed = recognise_columns(table.names)
     explicit = {
         "accel": explicit_columns(accel_cols),
@@ -410,9 +510,10 @@ def load_log(
         "gyro": explicit_columns(gyro_cols),
         "time": None if time_col is None else [time_col],
         "pose": None if pose_col is None else [pose_col],
+        "temperature": None if temp_col is None else [temp_col],
     }
     used: dict[str, list[str]] = {}
-    for role in ("accel", "mag", "gyro", "time", "pose"):
+    for role in ("accel", "mag", "gyro", "time", "pose", "temperature"):
         cols = explicit[role] if explicit[role] is not None else guessed.get(role)
         if cols is None:
             continue
@@ -431,15 +532,54 @@ def load_log(
         )
     if explicit["accel"] is None and explicit["mag"] is None:
         _check_second_sensor(table, used)
-    # one (n, 3) array per sensor, stacked once; rows are selected only when some are dropped
-    data: dict[str, Array] = {
-        role: np.column_stack([table.numeric(c) for c in used[role]])
-        for role in ("accel", "mag", "gyro")
-        if role in used
-    }
-    time = table.numeric(used["time"][0]) if "time" in used else None
-    pose = table.columns[used["pose"][0]] if "pose" in used else None
+    return used
 
+
+def _chosen_sensors(
+    table: Table, used: dict[str, list[str]], sensors: str | None, accel: bool, mag: bool
+) -> dict[str, list[str]]:
+    """The sensors to read (``sensors`` of :func:`load_log`): one left out, or a sensor with
+    a missing axis refused, naming the column."""
+    flags = {"accel": "--accel-cols", "mag": "--mag-cols"}
+    if sensors in ("accel", "mag"):
+        if sensors not in used:
+            raise InputError(
+                f"{table.path}: --sensors {sensors} but no {_ROLE_NAMES[sensors][4:]} columns "
+                f"recognised among {_listing(table.names, 8)}; name them with {flags[sensors]}"
+            )
+        other = "mag" if sensors == "accel" else "accel"
+        return {role: cols for role, cols in used.items() if role != other}
+    wanted = [] if accel != mag else ["accel", "mag"]  # one sensor's columns given: that one
+    for role, (names, axis) in incomplete_sensors(table.names, used).items():
+        if role not in wanted:
+            continue
+        alone = "mag" if role == "accel" else "accel"
+        rest = f", or calibrate {_ROLE_NAMES[alone]} alone with --sensors {alone}"
+        raise InputError(
+            f"{table.path}: {_ROLE_NAMES[role]}'s {axis} column is missing ({', '.join(names)} "
+            f"are recognised, no {axis} beside them); name the three with {flags[role]} X,Y,Z"
+            + (rest if alone in used else "")
+        )
+    if sensors == "both":
+        for role in ("accel", "mag"):
+            if role not in used:
+                raise InputError(
+                    f"{table.path}: --sensors both but no {_ROLE_NAMES[role][4:]} columns "
+                    f"recognised among {_listing(table.names, 8)}; name them with {flags[role]}"
+                )
+    return used
+
+
+def _finite_rows(
+    table: Table,
+    used: dict[str, list[str]],
+    data: dict[str, Array],
+    time: Array | None,
+    pose: Any,
+    drop_nan: bool,
+) -> tuple[dict[str, Array], Array | None, Any, NDArray[np.int64], int]:
+    """The rows whose used values are all finite: refused, or dropped with ``drop_nan``.
+    Returns the data, time and pose of those rows, their row numbers and how many dropped."""
     # min and max are NaN or inf when any value is: the everyday log (every value finite)
     # needs no (n, 3) mask and no row selection
     arrays = [*data.values(), *([] if time is None else [time])]
@@ -474,32 +614,19 @@ def load_log(
             + (" left after dropping those with NaN, inf or empty values" if n_bad else "")
             + "; give a log with readings"
         )
-    _check_values(table, used, data, index)
-    notes: list[str] = list(getattr(table, "notes", ()))
-    segment = None
-    if time is not None:
-        name = used["time"][0]
-        with np.errstate(over="ignore", invalid="ignore"):  # a span too wide is refused below
-            steps = np.diff(time)  # in the column's unit; its typical step found once
-            typical = _typical_step(steps)
-        seconds, note = _time_in_seconds(time, name, table.path, typical)
-        time, segment, split = _split_resets(
-            seconds, steps, typical, index, name, table.path, bool(split_on_reset)
-        )
-        del steps
-        notes += [n for n in (note, split) if n]
-    return Log(
-        path=table.path,
-        accel=data.get("accel"),
-        mag=data.get("mag"),
-        gyro=data.get("gyro"),
-        time=time,
-        pose=pose,
-        index=index,
-        used=used,
-        names=table.names,
-        dropped=n_bad,
-        notes=notes,
-        segment=segment,
-        metadata=dict(getattr(table, "metadata", {})),
+    return data, time, pose, index, n_bad
+
+
+def _time_axis(
+    time: Array, name: str, index: NDArray[np.int64], table: Table, split_on_reset: bool
+) -> tuple[Array, Any, list[str]]:
+    """The time column in seconds, split at resets (or refused there); the notes it leaves."""
+    with np.errstate(over="ignore", invalid="ignore"):  # a span too wide is refused below
+        steps = np.diff(time)  # in the column's unit; its typical step found once
+        typical = _typical_step(steps)
+    seconds, note = _time_in_seconds(time, name, table.path, typical)
+    time, segment, split = _split_resets(
+        seconds, steps, typical, index, name, table.path, bool(split_on_reset)
     )
+    del steps
+    return time, segment, [n for n in (note, split) if n]

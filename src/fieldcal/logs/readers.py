@@ -2,11 +2,12 @@
 
 :data:`READERS` maps a file suffix to its reader; anything else is read as delimited text
 (:mod:`fieldcal.logs.text`: CSV, TSV or blank separated, a preamble or a ``#`` header, decimal
-commas; a fast path with numpy's C parser, the careful reader where it gives up). Each reader
-returns a :class:`Table` of numeric (float) and text columns; every problem is an
-:class:`~fieldcal.errors.InputError` naming the row, the column and the fix. Only regular files
-are read: a pipe, a device or a folder is refused before it is opened (a FIFO would block, a
-device never end). pyarrow (Parquet) loads only when a Parquet file is read.
+commas; a fast path with pyarrow's or numpy's C parser, the careful reader where it gives
+up). Each reader returns a :class:`Table` of numeric (float) and text columns; every problem is
+an :class:`~fieldcal.errors.InputError` naming the row, the column and the fix. Only regular
+files are read: a pipe, a device or a folder is refused before it is opened (a FIFO would
+block, a device never end). pyarrow loads only when a Parquet file or a large text log is read
+(:func:`~fieldcal.logs.text.pyarrow_module`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from .text import LONGEST_FIELD, Table, _check_header, metadata_key, read_text, to_float
+from .arrow_parser import pyarrow_module
+from .text import (
+    LONGEST_FIELD,
+    Table,
+    _check_header,
+    metadata_key,
+    read_text,
+    to_float,
+)
 
 __all__ = [
     "LONGEST_FIELD",
@@ -41,11 +50,14 @@ _NPZ_FIX = "save the arrays with numpy.savez, e.g. accel=(n, 3), mag=(n, 3), t=(
 
 def _read_npz(path: Path) -> Table:
     try:
-        data = np.load(path, allow_pickle=False)
-        if not isinstance(data, np.lib.npyio.NpzFile):  # a bare .npy array
-            raise InputError(f"{path}: a single .npy array, not an .npz archive; {_NPZ_FIX}")
-        with data:
-            arrays = {key: np.asarray(data[key]) for key in data.files}
+        # opened here, so that a damaged archive (np.load gives its file to the zip reader,
+        # which fails) does not leave the file open
+        with path.open("rb") as handle:
+            data = np.load(handle, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # a bare .npy array
+                raise InputError(f"{path}: a single .npy array, not an .npz archive; {_NPZ_FIX}")
+            with data:
+                arrays = {key: np.asarray(data[key]) for key in data.files}
     except InputError:
         raise
     except (zipfile.BadZipFile, EOFError, ValueError, OSError, KeyError) as exc:
@@ -87,13 +99,11 @@ def npz_table(path: str | Path, arrays: dict[str, NDArray[np.generic]]) -> Table
 
 
 def _read_parquet(path: Path) -> Table:
-    try:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-    except ImportError:
+    pa, pq = pyarrow_module(), pyarrow_module("pyarrow.parquet")
+    if pa is None or pq is None:
         raise InputError(
             f"{path}: reading Parquet needs pyarrow; pip install 'fieldcal[parquet]' or give a CSV"
-        ) from None
+        )
     try:
         table = pq.read_table(path)
         names = list(table.schema.names)

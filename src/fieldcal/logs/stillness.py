@@ -1,7 +1,7 @@
 """Still-pose detection in a continuous log.
 
 Algorithm (all vectorised; cumulative sums give every moving-window statistic in O(n)); each
-sensor's readings are first divided by an exact power of two (:func:`power_of_two`), so the
+sensor's readings are first divided by an exact power of two (:func:`scale_of`), so the
 result is the same in any unit, 1e-30 or 1e30:
 
 1. Moving variance of the accelerometer over a centred window of ``window`` samples (the sum of
@@ -38,8 +38,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
+from ..limits import power_of_two
 
-__all__ = ["Segment", "StillResult", "detect_still", "moving_variance", "power_of_two"]
+__all__ = ["Segment", "StillResult", "detect_still", "moving_variance", "scale_of"]
 
 Array = NDArray[np.float64]
 
@@ -198,14 +199,11 @@ def _moving_mean(
     return _window_means(_cumulative(x), window, bounds)
 
 
-def power_of_two(x: Array) -> float:
-    """The power of two nearest the largest ``|x|`` (1 for zeros): dividing by it changes no
-    digit, and the readings become of order one."""
+def scale_of(x: Array) -> float:
+    """The power of two nearest the largest ``|x|`` (:func:`fieldcal.limits.power_of_two`; 1
+    for zeros): dividing by it changes no digit, and the readings become of order one."""
     # the largest |x| as max(max, -min): no temporary array of |x|
-    largest = max(float(np.max(x, initial=0.0)), -float(np.min(x, initial=0.0)))
-    if not (largest > 0 and math.isfinite(largest)):
-        return 1.0
-    return float(2.0 ** round(math.log2(largest)))
+    return power_of_two(max(float(np.max(x, initial=0.0)), -float(np.min(x, initial=0.0))))
 
 
 def _real(value: object, name: str, *, minimum: float, inclusive: bool = True) -> float:
@@ -311,6 +309,41 @@ def _median_columns(x: Array, rows: NDArray[np.bool_] | None) -> Array:
     return out
 
 
+#: Samples per block of the gyroscope's drifting-bias track, in detection windows (at least
+#: :data:`_BIAS_BLOCK_MIN`), and the still samples each block's median is taken over (at most).
+_BIAS_BLOCK_WINDOWS = 20
+_BIAS_BLOCK_MIN = 500
+_BIAS_SAMPLES = 64
+
+
+def _local_bias(
+    rates: Array, still: NDArray[np.bool_], window: int, overall: Array
+) -> tuple[Array, float] | None:
+    """The gyroscope's bias as it drifts: the median of the still samples of each block of
+    :data:`_BIAS_BLOCK_WINDOWS` windows, interpolated to every sample (n, 3), and the largest
+    squared departure of a block's median from the log's, ``overall`` (``None`` with fewer
+    than two blocks of still samples). The biases of MEMS gyroscopes move with temperature
+    while a board warms up; a constant bias then makes the cold poses read as turning."""
+    n = len(rates)
+    block = max(_BIAS_BLOCK_WINDOWS * window, _BIAS_BLOCK_MIN)
+    positions = np.flatnonzero(still)
+    if positions.size == 0 or n < 2 * block:
+        return None
+    _, starts, counts = np.unique(positions // block, return_index=True, return_counts=True)
+    enough = counts >= window
+    if np.count_nonzero(enough) < 2:
+        return None
+    starts, counts = starts[enough], counts[enough]
+    k = min(_BIAS_SAMPLES, int(counts.min()))
+    picks = positions[starts[:, None] + (np.arange(k)[None, :] * counts[:, None]) // k]
+    medians = np.median(rates[picks], axis=1)  # (blocks, 3)
+    centres = positions[starts + counts // 2].astype(float)
+    everywhere = np.arange(n, dtype=float)
+    track = np.column_stack([np.interp(everywhere, centres, medians[:, j]) for j in range(3)])
+    departure = float(np.max(np.sum((medians - overall) ** 2, axis=1)))
+    return track, departure
+
+
 def _runs(mask: NDArray[np.bool_], breaks: NDArray[np.int64]) -> NDArray[np.int64]:
     """(k, 2) start/stop (exclusive) of the runs of True, cut at ``breaks`` (segment starts)."""
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
@@ -391,7 +424,7 @@ def detect_still(
     breaks = _bounds(n, _segments(segment, n))
     bounds = _windows(n, window, breaks)
     # readings of order one in any unit: every statistic below is in these scaled units
-    scale = power_of_two(raw)
+    scale = scale_of(raw)
     accel = raw / scale
 
     with np.errstate(over="ignore", under="ignore"):  # a threshold beyond range is refused below
@@ -415,11 +448,12 @@ def detect_still(
         rates = _readings(gyro, "gyro")
         if len(rates) != n:
             raise InputError(f"gyro has {len(rates)} samples but accel has {n}; pass equal rows")
-        unit = power_of_two(rates)
+        unit = scale_of(rates)
         rates = rates / unit
         head = rates[: _HEAD + 1].copy()
         # the gyro's bias is its median over the samples the accelerometer calls still
         bias = _median_columns(rates, still if np.any(still) else None)
+        local = _local_bias(rates, still, window, bias)
         d = np.subtract(rates, bias, out=rates)  # the scaled rates are made again if needed
         np.multiply(d, d, out=d)  # as ** 2; the axes summed as .sum(axis=1) sums them
         energy = _moving_mean(d[:, 0] + d[:, 1] + d[:, 2], window, bounds)
@@ -428,6 +462,16 @@ def detect_still(
         floor_g = _floor(
             energy, floor_quantile, head, lambda: _readings(gyro_readings, "gyro") / unit
         )
+        if local is not None and local[1] > (np.float64(factor) ** 2 - 1.0) * floor_g:
+            # the bias drifts (a board warming up) by enough to push a resting window past the
+            # threshold on its own: measure the rotation against the bias of the time, or the
+            # cold poses read as turning. A smaller departure cannot hide a pose, and on
+            # hand-held logs it is mostly the hand's motion in the block medians (measured: 4x
+            # the floor on the ICM-20948 session 3; 12-13x on a simulated 20 K warm-up).
+            d = _readings(gyro, "gyro") / unit - local[0]
+            energy = _moving_mean(np.einsum("ij,ij->i", d, d), window, bounds)
+            floor_g = _floor(energy, floor_quantile, head, lambda: d)
+            del d
         with np.errstate(over="ignore"):
             still &= energy < np.float64(factor) ** 2 * floor_g
 
@@ -560,14 +604,14 @@ def _merge(
 def _segment(raw: Array, runs: NDArray[np.int64], work: Array | None = None) -> Segment:
     """The segment of ``runs`` of the readings ``raw``; its statistics are computed on the
     readings over the power of two nearest their largest value, as
-    :func:`fieldcal.logs.poses.poses_from_log` reports a pose's spread (the same numbers, so
+    :func:`fieldcal.logs.pose_finding.poses_from_log` reports a pose's spread (the same numbers, so
     it takes them from here). ``work``, of at least 9 floats per sample, is written into."""
     pieces = tuple((int(a), int(b)) for a, b in runs)
     if len(pieces) == 1:
         part = raw[pieces[0][0] : pieces[0][1]]  # a view: one run needs no gathered copy
     else:
         part = raw[np.concatenate([np.arange(a, b) for a, b in pieces])]
-    scale = power_of_two(part)
+    scale = scale_of(part)
     if work is None:
         work = np.empty(9 * len(part))
     scaled = np.divide(part, scale, out=work[: part.size].reshape(part.shape))

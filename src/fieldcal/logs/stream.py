@@ -24,6 +24,19 @@ delimiter on every line) may hold empty fields (NaN), as offline. Decimal commas
 the first data line writes its numbers with commas and never with points (that line fixes
 the mark for the stream: lines of the other mark are then skipped).
 
+**No header at all.** A board that printed its header before the port was opened (a
+native-USB board that does not reset on open) sends bare numbers only. Without ``columns``,
+the first :data:`GUESS_LINES` lines of numbers (skipped as ``before header``) decide the
+layout from their field count (:data:`LAYOUTS`: 9 or 10 numbers are ``[t,] ax..az, gx..gz,
+mx..mz``, 6 or 7 are ``[t,] ax..az, mx..mz``) and magnitudes: the first column is a time when it
+never decreases (it must, for 7 and 10, and must not for 6 and 9), and the gyroscope is the
+middle three (checked when the board moved: the gyroscope's norm is near zero at rest and
+large in motion, an accelerometer's and a magnetometer's stay near their field's; another
+triple reading so is a contradiction). The layout read is said in
+:attr:`LineParser.layout_note`; a line count or magnitudes that fit no layout leave the stream
+without a header and :attr:`LineParser.layout_problem` says why (``--columns`` names the
+fields).
+
 **Time.** The arrival time of every row is kept, to the microsecond (:func:`arrival_text`),
 as the last column: ``arrival_s`` when the stream has a time column (which
 :func:`~fieldcal.logs.log.load_log` then uses, so a replay at any speed gives the same
@@ -58,7 +71,10 @@ from .text import (
 __all__ = [
     "ARRIVAL",
     "ARRIVAL_AS_TIME",
+    "DROPPED_REASONS",
+    "GUESS_LINES",
     "HEADER",
+    "LAYOUTS",
     "MAX_LINE",
     "REASONS",
     "LineParser",
@@ -86,11 +102,31 @@ REASONS = (
     "another header",  # a header with other names
     "text",  # characters that are not numbers and delimiters (a debug print)
     "field count",  # numbers, but not as many as the columns
-    "not a number",  # e.g. an empty field, '1.2.3', a decimal mark of the other kind
+    "not a number",  # nan/inf, an empty field, '1.2.3', a decimal mark of the other kind
     "out of range",  # a magnitude over LARGEST (or inf)
 )
 #: ``last_reason`` of the line taken as the header (it is not a row, and not skipped).
 HEADER = "header"
+#: Lines of bare numbers before any header that decide the layout (half a second at 100 Hz)
+#: ... or, for 9 or 10 numbers while the board has not moved (the gyroscope cannot be told
+#: from the other triples), up to this many.
+GUESS_LINES = 50
+GUESS_MOST = 300
+#: The layouts of headerless lines, by their number of fields.
+LAYOUTS: dict[int, tuple[str, ...]] = {
+    6: ("ax", "ay", "az", "mx", "my", "mz"),
+    7: ("t", "ax", "ay", "az", "mx", "my", "mz"),
+    9: ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
+    10: ("t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
+}
+#: A triple is the gyroscope's when the median of its norm is under this share of its 95th
+#: percentile and under half that of every other triple (a gyroscope reads about zero at rest;
+#: an accelerometer's and a magnetometer's norms stay near the field's).
+GYRO_RATIO = 0.5
+#: The skip reasons of a data line gone wrong (garbled, cut, a field missing, NaN, beyond the
+#: range): what :attr:`LineParser.dropped` counts. Blank lines, comments, headers, debug prints
+#: (``text``) and the lines cut at connect or disconnect (``partial line``) are not data lost.
+DROPPED_REASONS = ("too long", "binary", "field count", "not a number", "out of range")
 
 #: Rows kept as Python lists before they are moved into the arrays (bounded: a flush copies
 #: a block, which is cheaper than one numpy assignment per row).
@@ -191,6 +227,10 @@ class LineParser:
         self._lines = 0
         self._last_reason: str | None = None
         self._last_line = ""
+        # bare numbers before any header: rows by (delimiter, field count), to guess a layout
+        self._guess: dict[tuple[str | None, int], list[list[float]]] = {}
+        self._layout_note: str | None = None
+        self._layout_problem: str | None = None
         if self._columns is not None:
             self._set_header(self._columns, None)
 
@@ -258,6 +298,21 @@ class LineParser:
         """Lines skipped, by reason (:data:`REASONS`; only reasons met, in order of first
         occurrence). A read-only view that follows the parser."""
         return MappingProxyType(self._skipped)
+
+    @property
+    def layout_note(self) -> str | None:
+        """How a stream without a header was read (None: it had one, or ``columns``)."""
+        return self._layout_note
+
+    @property
+    def layout_problem(self) -> str | None:
+        """Why the bare numbers before any header fit no layout (None: not tried, or fit)."""
+        return self._layout_problem
+
+    @property
+    def dropped(self) -> int:
+        """Data lines dropped: the lines skipped for a reason of :data:`DROPPED_REASONS`."""
+        return sum(self._skipped.get(reason, 0) for reason in DROPPED_REASONS)
 
     @property
     def last_reason(self) -> str | None:
@@ -345,6 +400,8 @@ class LineParser:
                 self._header_index = self._lines - 1
                 self._set_header(*found)
                 return HEADER
+            if self._columns is None and not partial and self._layout_problem is None:
+                self._guess_layout(text)
             return "before header"
         if text.lstrip().startswith("#"):
             return "comment"
@@ -354,7 +411,7 @@ class LineParser:
             found = self._as_header(text)
             if found is not None:
                 return "repeated header" if found[0] == self._header else "another header"
-            return "text"
+            return "not a number" if self._non_finite(text) else "text"
         deciding = self._bad is None  # the first data line fixes the layout
         delimiter = self._delimiter
         if deciding and self._columns is not None:
@@ -375,6 +432,24 @@ class LineParser:
         values.append(arrival)
         self._keep(values)
         return None
+
+    def _non_finite(self, text: str) -> bool:
+        """A data line with ``nan`` or ``inf`` for some readings (a sensor that failed to
+        read): as many fields as the columns, each a number or such a word."""
+        if self._bad is None:
+            return False  # the layout is not known yet
+        fields = _fields(text, self._delimiter) or []
+        if len(fields) != self._width:
+            return False
+        cells = [f.strip().lower().lstrip("+-") for f in fields]
+        words = [c in _NON_FINITE for c in cells]
+        return (
+            any(words)
+            and self._numbers(
+                [f for f, w in zip(fields, words, strict=True) if not w], self.decimal
+            )
+            is not None
+        )
 
     def _numbers(self, fields: list[str], decimal: str) -> list[float] | None:
         """The fields as floats (empty ones NaN in columns with an empty name), or None."""
@@ -412,6 +487,36 @@ class LineParser:
         if "accel" not in roles and "mag" not in roles:
             return None
         return names, delimiter
+
+    def _guess_layout(self, text: str) -> None:
+        """Keep a line of bare numbers; after :data:`GUESS_LINES` of one field count, take
+        the layout they show (see the module's docstring) or say why none fits."""
+        comma = self._decimal_given == ","
+        for delimiter in (";", "\t", None) if comma else (",", ";", "\t", None):
+            fields = _fields(text, delimiter) or []
+            cells = [f.strip().replace(",", ".") if comma else f.strip() for f in fields]
+            if len(cells) >= 3 and all(_NUMBER.fullmatch(c) for c in cells):
+                break
+        else:
+            return
+        rows = self._guess.setdefault((delimiter, len(cells)), [])
+        rows.append([float(c) for c in cells])
+        if len(rows) < GUESS_LINES:
+            return
+        names, said, checked = _layout(np.array(rows))
+        if names is None:
+            self._layout_problem = said
+            self._guess = {}
+            return
+        if not checked and len(rows) < GUESS_MOST:
+            return  # wait for the board to move
+        self._guess = {}
+        self._layout_note = (
+            f"no header line: {len(names)} numbers per line read as {','.join(names)} ({said}; "
+            f"the first {len(rows)} lines decided it and are kept as comments); give "
+            "--columns to name them otherwise"
+        )
+        self._set_header(names, delimiter)
 
     def _set_header(self, names: tuple[str, ...], delimiter: str | None) -> None:
         self._header = names
@@ -503,8 +608,51 @@ class LineParser:
         return Table(self._name, self.names, columns, notes, self.decimal)
 
 
+#: Words for a reading that is not a finite number (lower case, without a sign).
+_NON_FINITE = frozenset({"nan", "inf", "infinity", "ovf", "nan(ind)"})
 #: A number as both the parser and the offline reader read it (ASCII digits only).
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def _layout(rows: Array) -> tuple[tuple[str, ...] | None, str, bool]:
+    """The layout of headerless rows (k, n), why, and whether the magnitudes confirmed it
+    (:data:`LAYOUTS`); or None and the problem."""
+    n = rows.shape[1]
+    if n not in LAYOUTS:
+        known = ", ".join(str(k) for k in LAYOUTS)
+        return None, f"lines of {n} numbers fit no layout fieldcal knows ({known} numbers)", True
+    names = LAYOUTS[n]
+    steps = np.diff(rows[:, 0])
+    timed = bool(np.all(steps >= 0) and np.any(steps > 0))
+    if timed != (names[0] == "t"):
+        which = "increases like a time" if timed else "does not increase as a time would"
+        return None, f"lines of {n} numbers, but their first number {which}", True
+    body = rows[:, 1:] if timed else rows
+    said = "the first number increases: the time" if timed else "no time column"
+    if body.shape[1] == 9:
+        norms = np.linalg.norm(body.reshape(len(body), 3, 3), axis=2)
+        top = np.percentile(norms, 95, axis=0)
+        ratio = np.median(norms, axis=0) / np.where(top > 0, top, 1.0)
+        gyro_like = [
+            bool(r < GYRO_RATIO and np.all(r < 0.5 * np.delete(ratio, k)))
+            for k, r in enumerate(ratio.tolist())
+        ]
+        if gyro_like[1]:
+            said += "; the middle three read near zero at rest: the gyroscope"
+        elif any(gyro_like):
+            which = "first" if gyro_like[0] else "last"
+            return (
+                None,
+                (
+                    f"lines of {n} numbers, but the {which} three read near zero at rest as a "
+                    "gyroscope's would, not the middle three"
+                ),
+                True,
+            )
+        else:  # a board at rest all along: nothing tells the triples apart
+            said += "; the gyroscope taken as the middle three (not checked: no motion yet)"
+            return names, said, False
+    return names, said, True
 
 
 def _numeric(text: str) -> bool:

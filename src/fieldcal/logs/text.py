@@ -15,12 +15,16 @@ and the numbers in those lines are written with commas and never with points.
 checks every limit (:data:`LONGEST_FIELD`, duplicate names, ragged rows) and its one-line
 errors name the row, the column, what was found and the fix. It holds the whole file as Python
 strings (about 1 GB per million rows of ten columns), so :func:`read_text` first tries a fast
-path: blocks of :data:`BLOCK_BYTES` parsed by numpy's C reader (:func:`numpy.loadtxt`), the
+path: blocks of whole lines, checked for what the careful reader would read differently (a
+quote, non-ASCII data, a long line, a lone carriage return ...), parsed by pyarrow's CSV reader
+(files of :data:`ARROW_MIN_BYTES` or more, where pyarrow is installed; blocks of
+:data:`ARROW_BLOCKS` x :data:`BLOCK_BYTES`) or by numpy's C reader (:func:`numpy.loadtxt`;
+smaller files, blank-separated columns, blocks with comment lines or that pyarrow refuses), the
 numeric columns straight into one float array, the text columns (pose labels, device names)
 split apart. The fast path gives up on anything it would not read exactly as the careful
-reader (a quote, non-ASCII data, a long line, a value numpy does not parse, a ragged row ...),
-and the careful reader then reads the file and explains it: both give the same
-:class:`Table` or the same error (``tests/test_readers.py`` checks this on random files).
+reader (a value neither parser reads, a ragged row ...), and the careful reader then reads
+the file and explains it: all give the same :class:`Table` or the same error
+(``tests/logs/test_readers.py`` checks this on random files, with either parser).
 Giving up costs the careful reader's time and memory (a stray quote in ten million rows would
 need some 10 GB), so the fast path itself reads what well-formed logs hold: blank and comment
 lines, CRLF endings, a byte-order mark, empty fields (NaN), text columns, decimal commas.
@@ -41,8 +45,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
+from .arrow_parser import arrow_parser
 
 __all__ = [
+    "ARROW_BLOCKS",
+    "ARROW_MIN_BYTES",
     "BLOCK_BYTES",
     "HEAD_LINES",
     "LONGEST_FIELD",
@@ -69,6 +76,12 @@ HEAD_LINES = 200
 BLOCK_BYTES = 1 << 21
 #: Rows between two progress reports of :func:`read_text`.
 PROGRESS_ROWS = 1_000_000
+#: Files at least this large are parsed by pyarrow's CSV reader (where it is installed): its
+#: import (about 0.1 s) pays off above a few MB; smaller files, and blank-separated logs, go
+#: through numpy's parser.
+ARROW_MIN_BYTES = 1 << 22
+#: pyarrow parses blocks of this many times :data:`BLOCK_BYTES` (split among its threads).
+ARROW_BLOCKS = 8
 
 
 # ----------------------------------------------------------------------------- the table
@@ -177,6 +190,8 @@ def to_float(
     if decimal == ",":
         text = np.where(np.char.find(text, ".") >= 0, "", np.char.replace(text, ",", "."))
     try:
+        if not _plain(text):  # float() reads '１２' and '1_000'; the fast parsers do not
+            raise ValueError
         return text.astype(float)
     except ValueError:
         bad = next((i for i, v in enumerate(text) if not _is_number(str(v))), 0)
@@ -188,11 +203,25 @@ def to_float(
 
 # ----------------------------------------------------------------------------- small helpers
 def _is_number(text: str) -> bool:
+    """A number as every reader of fieldcal reads it: what ``float`` takes, in ASCII and
+    without ``_`` (``float`` also takes ``１２``, ``١٢`` and ``1_000``; numpy's and pyarrow's
+    parsers do not)."""
+    if not text.isascii() or "_" in text:
+        return False
     try:
         float(text)
     except ValueError:
         return False
     return True
+
+
+def _plain(cells: NDArray[np.generic]) -> bool:
+    """Text cells free of non-ASCII characters and ``_`` (see :func:`_is_number`); checked
+    on their code points at once."""
+    if cells.dtype.kind != "U" or cells.size == 0:
+        return True
+    codes = np.ascontiguousarray(cells).view(np.uint32)
+    return bool(codes.max() < 128 and not np.any(codes == ord("_")))
 
 
 def _numberish(text: str, delimiter: str | None) -> bool:
@@ -272,17 +301,20 @@ def _all_numbers(fields: Sequence[str], decimal: str) -> bool:
 def _column(cells: Sequence[str], decimal: str) -> NDArray[np.generic]:
     """One column of cells as floats (blanks are NaN) or, if any cell is not a number, as its
     stripped text (labels, device names; checked when used)."""
-    if decimal == ".":
+    text = np.array(cells, dtype=str)
+    if decimal == "." and _plain(text):
         try:
-            return np.array(cells, dtype=float)  # float() takes surrounding blanks
+            return text.astype(float)  # float() takes surrounding blanks
         except ValueError:
             pass
-    column = np.char.strip(np.array(cells, dtype=str))
+    column = np.char.strip(text)
     filled = np.where(column == "", "nan", column)
     if decimal == ",":
         if np.any(np.char.find(filled, ".") >= 0):
             return column  # a point in a decimal-comma log: not a number to guess at
         filled = np.char.replace(filled, ",", ".")
+    if not _plain(filled):
+        return column  # '１２', '1_000': text, refused by name where a reading is needed
     try:
         return filled.astype(float)
     except ValueError:
@@ -636,7 +668,8 @@ def _short_lines(raw: bytes) -> bool:
 
 def _read_head(handle: BinaryIO) -> tuple[list[str], int]:
     """The first lines as text (up to :data:`HEAD_LINES` data lines) and the byte-order mark's
-    length; anything but short UTF-8 lines ending in ``\\n`` is for the careful reader."""
+    length; anything but short UTF-8 lines ending in ``\\n`` is for the careful reader (quotes
+    are allowed here: a header may quote its names; the data blocks are checked again)."""
     bom = 3 if handle.read(3) == b"\xef\xbb\xbf" else 0
     handle.seek(bom)
     lines: list[str] = []
@@ -645,7 +678,7 @@ def _read_head(handle: BinaryIO) -> tuple[list[str], int]:
         raw = handle.readline(LONGEST_FIELD + 2)
         if not raw:
             break
-        if len(raw) > LONGEST_FIELD or b"\r" in raw[:-2] or b'"' in raw or b"\x00" in raw:
+        if len(raw) > LONGEST_FIELD or b"\r" in raw[:-2] or b"\x00" in raw:
             raise _UnusualError
         try:
             line = raw.decode("utf-8")
@@ -743,14 +776,28 @@ class _Columns:
         self.values = np.empty((width, max(capacity, 1024)))
         self.n = 0
 
-    def add(self, block: Array) -> None:
-        k = len(block)
+    def _room(self, k: int) -> None:
         if self.n + k > self.values.shape[1]:
             # an underestimate of the rows: grow by half (rare: the estimate is generous)
             grown = np.empty((self.values.shape[0], int(1.5 * self.values.shape[1]) + k))
             grown[:, : self.n] = self.values[:, : self.n]
             self.values = grown
+
+    def add(self, block: Array) -> None:
+        """Add the rows of ``block`` (rows x columns)."""
+        k = len(block)
+        self._room(k)
         self.values[:, self.n : self.n + k] = block.T
+        self.n += k
+
+    def add_columns(self, columns: list[list[Array]], k: int) -> None:
+        """Add ``k`` rows given column by column, each column as consecutive pieces."""
+        self._room(k)
+        for j, pieces in enumerate(columns):
+            at = self.n
+            for piece in pieces:
+                self.values[j, at : at + len(piece)] = piece
+                at += len(piece)
         self.n += k
 
 
@@ -764,7 +811,13 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
             raise _UnusualError from None
         delimiter, decimal = found.delimiter, found.decimal
         fields = _fields(found.header, delimiter)
-        if fields is None:
+        if fields is None or (
+            # quoted names ("t","ax",... as R and pyarrow write them): the quotes must close on
+            # the header line, which the careful reader splits together with the data lines
+            delimiter is not None
+            and '"' in found.header
+            and sum(1 for _ in csv.reader([found.header, "0"], delimiter=delimiter)) != 2
+        ):
             raise _UnusualError
         names = [h.strip() for h in fields]
         sample = [_fields(line, delimiter) for line in head[found.start :] if _is_data_line(line)]
@@ -787,12 +840,24 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
         columns = _Columns(len(numeric), int(1.25 * (size - offset) / max(per_row, 2.0)))
         texts: dict[int, list[NDArray[np.str_]]] = {j: [] for j in text}
         reported = 0
-        while raw := handle.read(BLOCK_BYTES):
+        arrow = None
+        if delimiter is not None and size - offset >= ARROW_MIN_BYTES:
+            arrow = arrow_parser(names, kinds, delimiter, decimal)
+        block_bytes = BLOCK_BYTES * (ARROW_BLOCKS if arrow is not None else 1)
+        while raw := handle.read(block_bytes):
             if not raw.endswith(b"\n"):
                 raw += handle.readline()
-            block = _block(raw, delimiter, decimal, len(names), numeric, text)
-            columns.add(block[0])
-            for j, cells in block[1].items():
+            _check_block(raw, delimiter, decimal)
+            # comment lines, and "nan(...)" (which pyarrow reads as NaN and float() refuses),
+            # go through numpy's parser, as does a block pyarrow refuses
+            parsed = None if arrow is None or b"#" in raw or b"(" in raw else arrow(raw)
+            if parsed is not None:
+                columns.add_columns(parsed[0], parsed[1])
+                cells_of = parsed[2]
+            else:
+                block, cells_of = _block(raw, delimiter, decimal, len(names), numeric, text)
+                columns.add(block)
+            for j, cells in cells_of.items():
                 texts[j].append(cells)
             if on_progress is not None and columns.n >= reported + PROGRESS_ROWS:
                 reported = columns.n // PROGRESS_ROWS * PROGRESS_ROWS
@@ -810,16 +875,10 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
     return Table(str(path), names, out, list(found.notes), decimal, meta)
 
 
-def _block(
-    raw: bytes,
-    delimiter: str | None,
-    decimal: str,
-    width: int,
-    numeric: list[int],
-    text: list[int],
-) -> tuple[Array, dict[int, NDArray[np.str_]]]:
-    """The numeric columns (rows x len(numeric)) and the text columns of one block of whole
-    lines, or :class:`_UnusualError`."""
+def _check_block(raw: bytes, delimiter: str | None, decimal: str) -> None:
+    """:class:`_UnusualError` unless the block of whole lines is what both fast parsers read
+    exactly as the careful reader: no quotes, ASCII, short lines, ``\\n`` or ``\\r\\n`` endings,
+    no points in a decimal-comma log."""
     if (
         b'"' in raw
         or b"\x00" in raw
@@ -830,6 +889,18 @@ def _block(
         or (decimal == "," and b"." in raw)
     ):
         raise _UnusualError
+
+
+def _block(
+    raw: bytes,
+    delimiter: str | None,
+    decimal: str,
+    width: int,
+    numeric: list[int],
+    text: list[int],
+) -> tuple[Array, dict[int, NDArray[np.str_]]]:
+    """The numeric columns (rows x len(numeric)) and the text columns of one block of whole
+    lines (checked by :func:`_check_block`) by numpy's parser, or :class:`_UnusualError`."""
     chunk = raw.decode("ascii")
     # (empty fields are rare: numpy stops at one, and _numbers writes them "nan" and retries)
     if text or "#" in chunk:

@@ -2,7 +2,7 @@
 
 A method is a function
 ``fit(stats, *, raw_accel, raw_mag, body_frame, progress, <options>) -> Calibration`` from pose
-statistics (:mod:`fieldcal.stats.poses`) to a calibration in fieldcal's gauge with unit fields;
+statistics (:mod:`fieldcal.stats.pose_stats`) to a calibration in fieldcal's gauge with unit fields;
 ``progress`` (``None`` or a callable taking one line of text) hears about long work. Its
 options are keyword-only parameters with defaults, so its signature documents them and
 :meth:`Method.check_options` rejects unknown ones. The shared path (:mod:`fieldcal.trust`)
@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ..stats.poses import brief
+from ..stats.pose_stats import brief
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -60,6 +60,9 @@ class Method:
     raw_samples : bool
         Whether ``fit`` reads the raw samples (``raw_accel``, ``raw_mag``); when not, they
         are passed as ``None`` and :func:`fieldcal.calibrate` makes no scaled copy of them.
+    temperature : bool
+        Whether ``fit`` estimates the temperature terms ``stats.temperature`` asks for (each
+        sensor's bias polynomial in ``T − T_ref``, :mod:`fieldcal.likelihood.temperature`).
     """
 
     name: str
@@ -71,6 +74,7 @@ class Method:
     warm_start: bool = False
     pose_weights: bool = False
     raw_samples: bool = True
+    temperature: bool = False
 
     def load(self) -> Callable[..., Calibration]:
         """The method's ``fit`` function (imports its module)."""
@@ -114,6 +118,7 @@ METHODS: dict[str, Method] = {
             warm_start=True,
             pose_weights=True,
             raw_samples=False,
+            temperature=True,
         ),
         Method(
             "greedy",

@@ -53,7 +53,7 @@ from ..geometry.rotations import (
     rotation_angle_deg,
     wahba,
 )
-from ..stats.poses import LARGEST, PoseStats, Samples, SensorStats, as_readings, brief
+from ..stats.pose_stats import LARGEST, PoseStats, Samples, SensorStats, as_readings, brief
 
 __all__ = [
     "MIN_POSES",

@@ -1,6 +1,11 @@
 """A device's calibrations over time (:meth:`fieldcal.store.Store.drift`): a table of every
 parameter with its standard error and a figure of them against time, changes beyond their
-uncertainty marked."""
+uncertainty marked.
+
+Temperature apart from ageing: calibrations with a temperature model have their biases drawn at
+one common temperature per sensor (the median of their reference temperatures; the table
+compares each pair at theirs, :func:`fieldcal.comparison.common_temperature`), and the
+first-order coefficients (bias change per kelvin) get panels of their own."""
 
 from __future__ import annotations
 
@@ -11,14 +16,14 @@ import numpy as np
 from rich import box
 from rich.table import Table
 
-from ..comparison import parameter_values
+from ..comparison import parameter_stds, parameter_values, temperature_values
 from ..errors import InputError
 from ..store import DriftRow
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure as MplFigure
 
-__all__ = ["GROUPS", "drift_figure", "drift_table"]
+__all__ = ["GROUPS", "common_temperatures", "drift_figure", "drift_table"]
 
 #: Parameter groups drawn (one panel each) and tabled: label and the names in the covariance.
 GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
@@ -29,23 +34,41 @@ GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("gyroscope scale", tuple(f"gyro.gain[{j},{j}]" for j in range(3))),
     ("gyroscope bias", tuple(f"gyro.bias[{j}]" for j in range(3))),
     ("dip (°)", ("dip_deg",)),
+    ("accelerometer bias per K", tuple(f"accel.temp[1,{j}]" for j in range(3))),
+    ("magnetometer bias per K", tuple(f"mag.temp[1,{j}]" for j in range(3))),
+    ("gyroscope bias per K", tuple(f"gyro.temp[1,{j}]" for j in range(3))),
 )
+
+
+def common_temperatures(rows: Sequence[DriftRow]) -> dict[str, float]:
+    """Per sensor, the temperature (°C) the figure draws its biases at: the median of the
+    reference temperatures of the calibrations with a temperature model (none: absent)."""
+    out = {}
+    for sensor in ("accel", "mag", "gyro"):
+        refs = [
+            part.temperature.reference
+            for row in rows
+            if (part := getattr(row.calibration, sensor)) is not None
+            and part.temperature is not None
+        ]
+        if refs:
+            out[sensor] = float(np.median(refs))
+    return out
 
 
 def _series(rows: Sequence[DriftRow]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Every parameter's values and standard errors per calibration (NaN where absent), each
     calibration read once."""
-    values = [parameter_values(row.calibration) for row in rows]
-    names = {name for v in values for name in v}
+    at = common_temperatures(rows)
+    values = [
+        {**parameter_values(row.calibration, at), **temperature_values(row.calibration, at)}
+        for row in rows
+    ]
+    names = sorted({name for v in values for name in v})
+    stds = np.array([parameter_stds(row.calibration, names, at) for row in rows])
     out = {}
-    for name in names:
-        stds = [
-            c.std(name)
-            if (c := row.calibration.covariance) is not None and name in c.names
-            else np.nan
-            for row in rows
-        ]
-        out[name] = np.array([v.get(name, np.nan) for v in values]), np.array(stds)
+    for i, name in enumerate(names):
+        out[name] = np.array([v.get(name, np.nan) for v in values]), stds[:, i]
     return out
 
 
@@ -59,10 +82,14 @@ def drift_table(rows: Sequence[DriftRow]) -> Table:
         cal = row.calibration
         dip = "" if cal.dip_deg is None else f"{cal.dip_deg:.2f} ± {cal.dip_std_deg or 0:.2g}"
         if row.since_previous is None:
-            changed = "(first)"
+            changed = row.note or "(first)"
         else:
             moved = row.since_previous.changed
             changed = ", ".join(f"{c.name} ({c.z:+.1f})" for c in moved) or "nothing"
+            common = row.since_previous.temperature
+            if common:
+                at = ", ".join(f"{s} {t:.1f} °C" for s, t in common.items())
+                changed += f" (biases compared at {at})"
         verdict = "?" if cal.verdict is None else cal.verdict.level
         table.add_row(row.entry.created.strftime("%Y-%m-%d %H:%M:%S"), verdict, dip, changed)
     return table
@@ -80,7 +107,12 @@ def drift_figure(rows: Sequence[DriftRow]) -> MplFigure:
     fig = Figure(figsize=(10, 2.2 * len(groups)), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(groups), 1, sharex=True))
     times = [row.entry.created for row in rows]
+    at = common_temperatures(rows)
+    words = {"accelerometer": "accel", "magnetometer": "mag", "gyroscope": "gyro"}
     for ax, (label, names) in zip(axes, groups, strict=True):
+        sensor = words.get(label.split()[0])
+        if label.endswith(" bias") and sensor in at:
+            label = f"{label} at {at[sensor]:.1f} °C"
         for name in names:
             values, stds = series[name]
             ax.errorbar(times, values, yerr=stds, marker="o", ms=3, capsize=2, label=name)

@@ -30,6 +30,10 @@ request, each figure as a PNG file). From top to bottom the page shows:
 9. **Coverage**: each pose's field direction in the sensor frame (Mollweide), rejected poses in
    red.
 
+A calibration from continuous motion has no poses: its trajectory and coverage, and its
+residuals over time with the down-weighted stretches, are drawn instead
+(:mod:`fieldcal.output.motion_figures`).
+
 Every piece of text that comes from the user or from a file (paths, column names, pose labels,
 verdict reasons) is HTML-escaped, and ``$`` is escaped in figure text so matplotlib does not
 read it as mathematics.
@@ -59,6 +63,9 @@ from .._files import same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log, load_log
+from .motion_figures import CAPTIONS as MOTION_CAPTIONS
+from .motion_figures import TITLES as MOTION_TITLES
+from .motion_figures import is_continuous, motion_figures
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
@@ -393,6 +400,52 @@ def _gyro_figure(Figure: type[MplFigure], cal: Calibration) -> MplFigure:
     return fig
 
 
+def _temperature_series(cal: Calibration) -> dict[str, tuple[Any, Array, Array]]:
+    """Per sensor with a temperature model: the model, each fitted pose's temperature and the
+    bias that pose shows (the model's bias at its temperature plus its residual; the
+    gyroscope's: its still poses' mean rates)."""
+    out: dict[str, tuple[Any, Array, Array]] = {}
+    for s in SENSORS:
+        sensor = getattr(cal, s)
+        model = None if sensor is None else sensor.temperature
+        rows = [p for p in cal.poses if "temperature" in p and f"{s}_residual" in p]
+        if model is None or not rows:
+            continue
+        t = np.array([float(p["temperature"]) for p in rows])
+        residual = np.array([p[f"{s}_residual"] for p in rows], dtype=float)
+        out[s] = model, t, np.asarray(sensor.bias) + model.shift(t) + residual
+    gyro = cal.gyro
+    info = cal.options.get("gyro", {})
+    thermal = info.get("temperature", {}) if isinstance(info, Mapping) else {}
+    temps, bias = thermal.get("pose_temperature_c"), info.get("pose_bias")
+    if gyro is not None and gyro.temperature is not None and temps and bias:
+        out["gyro"] = gyro.temperature, np.asarray(temps, float), np.asarray(bias, float)
+    return out
+
+
+def _temperature_figure(Figure: type[MplFigure], cal: Calibration) -> MplFigure | None:
+    """Each sensor's bias against temperature: the poses' biases (dots) and the fitted
+    polynomial over the span seen (line), per axis; None without a temperature model."""
+    series = _temperature_series(cal)
+    if not series:
+        return None
+    fig = Figure(figsize=(10, 2.8 * len(series)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(series), 1))
+    names = {**_LABELS, "gyro": "gyroscope"}
+    for ax, (s, (model, t, bias)) in zip(axes, series.items(), strict=True):
+        grid = np.linspace(model.span[0], model.span[1], 100)
+        curve = np.asarray(getattr(cal, s).bias) + model.shift(grid)
+        for j, axis in enumerate("xyz"):
+            line = ax.plot(grid, curve[:, j], "-", label=f"{axis}: fitted")[0]
+            ax.plot(t, bias[:, j], "o", ms=3, color=line.get_color(), label=f"{axis}: poses")
+        how = f"order {model.order}" if model.order else "no terms"
+        ax.set_title(f"{names[s]} bias ({how}, T_ref {model.reference:.1f} °C)", fontsize=9)
+        ax.set_ylabel("bias (raw units)")
+        ax.legend(fontsize=7, ncols=3)
+    axes[-1].set_xlabel("die temperature (°C)")
+    return fig
+
+
 def _histogram_figure(
     Figure: type[MplFigure],
     norms: Mapping[str, tuple[Array, Array]],
@@ -446,7 +499,7 @@ _CSS = (
 )
 
 _HEADLINES = {
-    "pass": "PASS: the calibration can be trusted",
+    "pass": "PASS: consistent with its noise and within the accuracy targets",
     "warn": "WARN: usable, but look at the reasons",
     "fail": "FAIL: do not use this calibration",
 }
@@ -459,10 +512,11 @@ def _banner_html(cal: Calibration) -> str:
             '<div class="verdict none"><h2>no verdict (calibration file from fieldcal 0.1)</h2>'
             "<p>Calibrate the log again with this version to get one.</p></div>"
         )
-    reasons = "".join(f"<li>{_esc(r)}</li>" for r in verdict.reasons)
+    reasons = "".join(f"<li>{_esc(r.text)}</li>" for r in verdict.reasons)
     body = f"<ul>{reasons}</ul>" if reasons else "<p>no reason for doubt was found</p>"
     headline = _HEADLINES[verdict.level]
-    return f'<div class="verdict {_esc(verdict.level)}"><h2>{headline}</h2>{body}</div>'
+    codes = f'<p class="codes">{_esc(verdict.summary)}</p>' if verdict.reasons else ""
+    return f'<div class="verdict {_esc(verdict.level)}"><h2>{headline}</h2>{codes}{body}</div>'
 
 
 def _summary_html(cal: Calibration, log: Log, poses: list[_Pose]) -> str:
@@ -639,6 +693,10 @@ _CAPTIONS = {
     "mag_sphere": "Raw (top) and calibrated (bottom) magnetometer readings.",
     "coverage": "Field direction of each pose in the sensor frame (red: rejected). Poses "
     "spread over the sphere determine the calibration best.",
+    "temperature": "Each sensor's bias against the die temperature: dots, the bias each pose "
+    "shows (its mean minus the model's field part); lines, the fitted polynomial over the "
+    "temperatures seen (held at its ends beyond them). docs/methods/temperature.md.",
+    **MOTION_CAPTIONS,
     "gyro": "Left: each motion segment's rotation residual after calibration (degrees): the "
     "angle between the rotation the calibrated gyroscope integrates over the motion and the one "
     "the fit finds between the two poses. Right: the gyroscope's mean raw rate in each still "
@@ -652,7 +710,9 @@ _TITLES = {
     "accel_sphere": "Accelerometer readings",
     "mag_sphere": "Magnetometer readings",
     "coverage": "Pose coverage",
+    **MOTION_TITLES,
     "gyro": "Gyroscope",
+    "temperature": "Bias against temperature",
 }
 #: The figures a report can hold, in page order: ``--png`` writes ``<name>.png`` for each drawn.
 FIGURES = tuple(_TITLES)
@@ -704,8 +764,12 @@ def _figures(cal: Calibration, log: Log | None) -> tuple[dict[str, MplFigure], l
         figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)
     if log is not None:
         figures.update(_log_figures(Figure, cal, log, sensors, poses))
+    figures.update(motion_figures(Figure, cal, log))  # continuous motion: none otherwise
     if cal.gyro is not None and cal.gyro_segments:
         figures["gyro"] = _gyro_figure(Figure, cal)
+    thermal = _temperature_figure(Figure, cal)
+    if thermal is not None:
+        figures["temperature"] = thermal
     return figures, poses
 
 
@@ -766,7 +830,7 @@ def write_report(
         The HTML file to write (one self-contained page).
     png_dir : str or Path, optional
         Also write each figure there as ``<name>.png`` (``timeline``, ``residuals``,
-        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``, ``gyro``:
+        ``histograms``, ``accel_sphere``, ``mag_sphere``, ``coverage``, ``gyro``, ``temperature``:
         :data:`FIGURES`).
     on_progress : callable, optional
         Called with one line of text as each figure is drawn (a large log takes seconds).
@@ -802,7 +866,7 @@ def write_report(
         if key == "residuals":
             section += _rejected_html(cal, poses)
         sections.append(section)
-    if "residuals" not in figures:
+    if "residuals" not in figures and not is_continuous(cal):
         note = (
             "<h2>Per-pose residuals</h2><p>This calibration file has no per-pose residuals "
             "(written by fieldcal 0.1); calibrate the log again to see them.</p>"

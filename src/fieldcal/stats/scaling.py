@@ -7,7 +7,7 @@ code then only ever sees readings of order one. Readings whose squares overflow 
 1e150) cannot have a covariance and are refused.
 
 This module scales continuous (n, 3) input. Per-pose input is never copied to be scaled: its
-pose statistics are divided instead (:func:`fieldcal.stats.poses.summarize_scaled`), which
+pose statistics are divided instead (:func:`fieldcal.stats.pose_stats.summarize_scaled`), which
 gives the same digits.
 """
 
@@ -18,7 +18,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from .poses import LARGEST, Samples, as_pose_list, as_readings, power_of_two
+from ..limits import LARGEST, power_of_two
+from .pose_stats import Samples, as_pose_list, as_readings
 
 __all__ = ["LARGEST", "normalise"]
 
@@ -49,7 +50,7 @@ def _largest(x: Array) -> tuple[float, str]:
 def normalise(samples: Samples | None, name: str) -> tuple[Samples | None, float]:
     """``samples / 2^k`` (per-pose list, or a continuous (n, 3) array) and ``2^k``.
 
-    Per-pose input is validated as :func:`fieldcal.stats.poses.as_pose_list` does.
+    Per-pose input is validated as :func:`fieldcal.stats.pose_stats.as_pose_list` does.
     """
     if samples is None:
         return None, 1.0

@@ -7,7 +7,7 @@ from numpy.typing import NDArray
 from scipy.special import chdtrc
 
 from ..calibration import Diagnostics
-from ..stats.poses import PoseStats
+from ..stats.pose_stats import PoseStats
 from .evaluate import Evaluation
 
 __all__ = ["certify", "pose_table"]
@@ -29,8 +29,9 @@ def certify(ev: Evaluation, status: str) -> Diagnostics:
 def pose_table(
     ev: Evaluation, stats: PoseStats, index: NDArray[np.int64]
 ) -> list[dict[str, object]]:
-    """One dict per pose in the fit: caller's index, samples (and trimmed), cost, share and the
-    residual of each sensor in raw units (the pose mean minus the model)."""
+    """One dict per pose in the fit: caller's index, samples (and trimmed), cost, share, the
+    residual of each sensor in raw units (the pose mean minus the model) and, with a
+    temperature column, the pose's mean temperature (°C)."""
     cost = ev.pose_cost
     total = float(cost.sum())
     rows = []
@@ -43,6 +44,8 @@ def pose_table(
                 row[f"{s}_trimmed"] = int(sensor.trimmed[i])
             row[f"{s}_residual"] = [float(-x) for x in ev.raw[s][i]]
         row["samples"] = max(int(stats.sensor(s).counts[i]) for s in stats.sensors)
+        if stats.temperature is not None:  # the pose's mean temperature (°C): the report's
+            row["temperature"] = float(stats.temperature.means[i])
         row["cost"] = float(cost[i])
         row["share"] = float(cost[i] / total) if total > 0 else 0.0
         rows.append(row)

@@ -14,11 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration
+from ..likelihood.cramer_rao import Uncertainty, uncertainty
+from ..likelihood.levenberg import normal_equations
+from ..likelihood.pose_model import Problem, build_problem, field, residuals
 from ..methods.mle import state_from_calibration
-from ..methods.mle.lm import normal_equations
-from ..methods.mle.model import Problem, build_problem, field, residuals
-from ..methods.mle.uncertainty import Uncertainty, uncertainty
-from ..stats.poses import PoseStats
+from ..stats.pose_stats import PoseStats
 
 __all__ = ["Evaluation", "evaluate"]
 

@@ -27,13 +27,15 @@ from scipy.special import chdtrc
 
 from ..calibration import Calibration, ParameterCovariance, RejectedPose, SensorCalibration
 from ..methods import METHODS, Method
-from ..reference import DIP_ALLOWANCE_DEG, FieldReference
-from ..stats.noise import wishart_std
-from ..stats.poses import PoseStats, Samples
+from ..reference import FieldReference
+from ..settings import FitSettings, TrustSettings
+from ..stats.noise_models import wishart_std
+from ..stats.pose_stats import PoseStats, Samples
 from .accuracy import predict_accuracy
 from .certificate import certify, pose_table
+from .correlation import widen_for_correlation
 from .evaluate import Evaluation, evaluate
-from .handedness import reference_mirrored
+from .handedness import Handedness, decide, reference_mirrored
 from .outliers import REASONS, pose_tests
 from .pose_noise import (
     PoseNoise,
@@ -42,9 +44,10 @@ from .pose_noise import (
     noise_reported,
     widening,
 )
+from .targets import Targets
 from .verdict import Findings, ReferenceCheck, judge
 
-__all__ = ["fit_trusted", "reference_mirrored"]
+__all__ = ["Handedness", "decide", "fit_trusted", "reference_mirrored"]
 
 Array = NDArray[np.float64]
 
@@ -155,24 +158,39 @@ def fit_trusted(
     *,
     raw_accel: Samples | None,
     raw_mag: Samples | None,
-    body_frame: str,
+    fit: FitSettings,
+    trust: TrustSettings,
     options: Mapping[str, object],
     sources: dict[str, str],
     pose_noise: dict[str, float | None],
-    robust: bool,
-    alpha: float,
-    mag_mirrored: bool = False,
     reference: FieldReference | None = None,
-    dip_allowance_deg: float = DIP_ALLOWANCE_DEG,
     on_progress: Callable[[str], None] | None = None,
+    targets: Targets | None = None,
+    magnitudes: Mapping[str, tuple[float, float]] | None = None,
+    time_ordered: bool = False,
 ) -> Calibration:
     """Fit with ``method`` and attach the noise model, error bars, certificate, rejected poses,
     verdict and accuracy (see the module docstring). ``stats`` must hold all the caller's poses;
-    ``cal.rejected`` and ``cal.poses`` use their numbering. With a ``reference`` (the World
-    Magnetic Model's field at the site) the magnetometer's handedness follows its dip rather than
-    ``mag_mirrored`` (:func:`~fieldcal.trust.handedness.reference_mirrored`) and the verdict
-    compares the dips."""
-    runner = _Runner(method, {"accel": raw_accel, "mag": raw_mag}, body_frame, options, on_progress)
+    ``cal.rejected`` and ``cal.poses`` use their numbering.
+
+    ``fit`` and ``trust`` are the settings as :func:`fieldcal.api.calibrate_with` checked them:
+    ``fit.body_frame``, ``fit.robust`` (the pose tests and refits), ``fit.mag_mirrored``,
+    ``trust.false_alarm`` (the tests' family-wise rate) and ``trust.dip_allowance_deg`` are
+    read here. With a ``reference`` (the World Magnetic Model's field at the site) the
+    magnetometer's handedness follows its dip rather than ``fit.mag_mirrored``
+    (:func:`~fieldcal.trust.handedness.decide`) and the verdict compares the dips. The
+    handedness is decided here, once: ``cal.options["mag_mirrored"]`` and
+    ``["mag_handedness"]`` (``"stated"`` or ``"reference"``) carry the decision.
+
+    ``targets`` are the verdict's accuracy targets (default :class:`~fieldcal.trust.targets.
+    Targets` ()); ``magnitudes`` maps each sensor whose field magnitude the user gave to
+    ``(factor, given)`` (:class:`~fieldcal.trust.verdict.Case`), for the gain rules.
+    ``time_ordered``: the poses are consecutive pieces of one continuous motion, in time order;
+    the error bars are widened for the correlation measured between neighbours
+    (:func:`~fieldcal.trust.correlation.widen_for_correlation`)."""
+    raw = {"accel": raw_accel, "mag": raw_mag}
+    runner = _Runner(method, raw, fit.body_frame, options, on_progress)
+    alpha, mag_mirrored = trust.false_alarm, bool(fit.mag_mirrored)
     n_total = stats.n_poses
     keep = np.arange(n_total)
     # one sample per pose: the pose-level variance is the only noise there is, so it is
@@ -189,7 +207,7 @@ def fit_trusted(
     rejected: list[RejectedPose] = []
     left = 0
     min_keep = max(method.min_poses_for(len(stats.sensors)), n_total - n_total // 2)
-    while robust:
+    while fit.robust:
         tests = pose_tests(ev, current, noise)
         flagged = tests.flagged(alpha)
         if not flagged.any():
@@ -223,17 +241,22 @@ def fit_trusted(
     result, found = _finish(
         cal, ml, current, ev, noise, runner, keep, rejected, left, sources, n_total, first_options
     )
+    if time_ordered:  # consecutive pieces of one motion: measured correlation widens the bars
+        result = widen_for_correlation(result)
     # the handedness is a choice of gauge: make it before the verdict reads the dip
+    hand = decide(result, mag_mirrored, reference, trust.dip_allowance_deg)
     check = None
     if reference is not None:
-        decided = reference_mirrored(result, reference, dip_allowance_deg)
-        check = ReferenceCheck(reference, dip_allowance_deg, mag_mirrored, decided)
-        mag_mirrored = mag_mirrored if decided is None else decided
-    result = result.with_mag_handedness(mag_mirrored)
+        check = ReferenceCheck(reference, trust.dip_allowance_deg, mag_mirrored, hand.decided)
+    result = result.with_mag_handedness(hand.mirrored)
     accuracy = predict_accuracy(result)
-    verdict = judge(result, current, found, accuracy, check)
+    verdict = judge(result, current, found, accuracy, check, targets=targets, magnitudes=magnitudes)
     return dataclasses.replace(
-        result, accuracy=accuracy, verdict=verdict, field_reference=reference
+        result,
+        accuracy=accuracy,
+        verdict=verdict,
+        field_reference=reference,
+        options={**result.options, **hand.options},
     )
 
 

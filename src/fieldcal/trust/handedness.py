@@ -10,11 +10,12 @@ dip is too close to zero to have a sign.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from ..calibration import Calibration
 from ..reference import FieldReference
 
-__all__ = ["SIGNIFICANT", "reference_mirrored"]
+__all__ = ["SIGNIFICANT", "Handedness", "decide", "reference_mirrored"]
 
 #: A dip has a sign when it is this many standard errors away from zero.
 SIGNIFICANT = 3.0
@@ -37,3 +38,30 @@ def reference_mirrored(
     if not (fitted_signed and model_signed):
         return None
     return math.copysign(1.0, dip) != math.copysign(1.0, reference.dip_deg)
+
+
+@dataclass(frozen=True)
+class Handedness:
+    """The one decision: whether the magnetometer is mirrored, what the reference decided
+    (``None``: no reference, or it could not), and so who decided."""
+
+    mirrored: bool
+    decided: bool | None
+
+    @property
+    def options(self) -> dict[str, object]:
+        """The provenance entries ``mag_mirrored`` and ``mag_handedness`` (``"reference"`` or
+        ``"stated"``)."""
+        return {
+            "mag_mirrored": self.mirrored,
+            "mag_handedness": "stated" if self.decided is None else "reference",
+        }
+
+
+def decide(
+    cal: Calibration, stated: bool, reference: FieldReference | None, allowance_deg: float
+) -> Handedness:
+    """The magnetometer's handedness for ``cal``: the reference's when there is one and it can
+    decide (:func:`reference_mirrored`), otherwise ``stated`` (``mag_mirrored``)."""
+    decided = None if reference is None else reference_mirrored(cal, reference, allowance_deg)
+    return Handedness(bool(stated) if decided is None else decided, decided)

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import fdtrc
 
-from ..stats.poses import PoseStats
+from ..stats.pose_stats import PoseStats
 from .evaluate import Evaluation
 from .pose_noise import PoseNoise, dof_factor
 
@@ -96,6 +96,11 @@ class PoseTests:
         return sensor, sensor
 
 
+#: A sensor whose estimated variance keeps fewer degrees of freedom than this once a pose is
+#: deleted is studentised with the whole pose's deletion (both sensors): one-reading-per-pose
+#: sets of 8–16 poses (measured: ``benchmarks/trust.py``, part 6, small sets).
+MIN_OWN_DOF = 8.0
+
 #: Residual directions whose variance the fit leaves below this share carry no test: the pose's
 #: own rotation absorbs them (a rotation about ``h`` moves only the accelerometer's reading).
 MIN_SHARE = 0.02
@@ -119,6 +124,7 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
     stat = np.zeros((n, len(sensors)))
     pval = np.ones((n, len(sensors)))
     radial = np.ones((n, len(sensors)))
+    joint = _joint_deletion(ev, lev)
     for j, s in enumerate(sensors):
         along = np.einsum("ni,ni->n", ev.raw[s], ev.directions[s]) ** 2
         radial[:, j] = along / np.maximum(np.einsum("ni,ni->n", ev.raw[s], ev.raw[s]), 1e-300)
@@ -131,6 +137,13 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
             # only the estimated share w of each pose mean's variance rescales with it
             J, nu = ev.sensor_cost(s), shares[s]
             ratio = (J - t) / np.maximum(nu - r, 1.0) / max(J / nu, 1e-300)
+            if joint is not None:
+                # the poses' rotations couple the sensors, so one sensor's deletion identity
+                # is only approximate; with few degrees of freedom of its own a pose can seem
+                # to hold all of a sensor's cost (J_s − t_s ≤ 0, the variance left 0, every
+                # test significant): there the pose's joint identity, exact, stands in
+                few = (nu - r) < MIN_OWN_DOF
+                ratio = np.where(few, np.maximum(ratio, joint), ratio)
             scale = np.maximum(1.0 - w + w * np.maximum(ratio, 0.0), max(1.0 - w, 1e-6))
             t = t / scale
             c = dof_factor(stats.sensor(s))
@@ -140,6 +153,22 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
         stat[:, j] = t
         pval[:, j] = fdtrc(r, nu_eff, np.maximum(t, 0.0) / r)
     return PoseTests(sensors, stat, pval, radial)
+
+
+def _joint_deletion(ev: Evaluation, lev: Array) -> Array | None:
+    """Per pose, the variance left without it relative to the current one, from the whole
+    pose (both sensors): ``(J − t_i) / (ν − r_i) / (J / ν)`` with ``t_i`` the pose's
+    studentised cost over all its readings (exact deletion identity of the linear model);
+    ``None`` with one sensor (the sensor's own identity is then the joint one)."""
+    if len(ev.problem.sensors) < 2:
+        return None
+    m = ev.whitened.shape[1]
+    t, r = _studentised(ev.whitened, np.eye(m) - lev)
+    J = float(ev.pose_cost.sum())
+    nu = float(sum(ev.dof_share().values()))
+    if not (J > 0 and nu > 0):
+        return None
+    return np.asarray(np.maximum(J - t, 0.0) / np.maximum(nu - r, 1.0) / (J / nu))
 
 
 def _estimated_share(stats: PoseStats, noise: PoseNoise, sensor: str) -> float:

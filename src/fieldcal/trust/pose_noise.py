@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration
-from ..stats.poses import PoseStats, SensorStats
+from ..stats.pose_stats import PoseStats, SensorStats
 from .evaluate import Evaluation, evaluate
 
 __all__ = ["PoseNoise", "estimate", "solve_pose_variance"]

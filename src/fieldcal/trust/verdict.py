@@ -1,26 +1,43 @@
-"""One verdict from fixed rules: ``pass``, ``warn`` or ``fail``, with one line per reason.
+"""One verdict from fixed rules: ``pass``, ``warn`` or ``fail``, with one :class:`Reason` per
+finding.
 
-A rule of level ``note`` adds its line without raising the level (a fact the user should
+A rule of level ``note`` adds its reason without raising the level (a fact the user should
 know that the data cannot settle, such as the sign of the dip).
 
-Every rule is a code, a level and a fixed message (filled with numbers), listed in
-:data:`RULES` and in ``docs/trust.md``; nothing here builds prose that is parsed later.
+Every rule is a code with a fixed level and message in :data:`RULES` (filled with numbers; the
+table in ``docs/trust.md``) and a small check in :data:`CHECKS` that says, for one
+:class:`Case`, which codes fire and with what numbers. :func:`judge` runs the list. Nothing here
+builds prose that is parsed later: scripts, tests and the batch table read ``Reason.code``.
+
+Adding a rule: its entry in :data:`RULES`, a check function appended to :data:`CHECKS`, a row
+in ``docs/trust.md`` and a test.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..calibration import Accuracy, Calibration, Verdict
+from ..calibration import Accuracy, Calibration, Reason, Verdict
+from ..likelihood.temperature import MIN_SPAN_K
 from ..reference import FieldReference
-from ..stats.poses import PoseStats
+from ..stats.pose_stats import PoseStats
+from .targets import DEFAULT_TARGETS, Targets
 
-__all__ = ["RULES", "Findings", "ReferenceCheck", "judge"]
+__all__ = [
+    "CHECKS",
+    "RULES",
+    "Case",
+    "Findings",
+    "ReferenceCheck",
+    "judge",
+    "reason",
+    "with_dropped_lines",
+]
 
 Array = NDArray[np.float64]
 
@@ -59,8 +76,26 @@ RULES: dict[str, tuple[str, str]] = {
     ),
     "unusable": (
         "fail",
-        "the calibration is too uncertain to use (predicted {what} error {value}); record more "
-        "poses, still and away from iron, covering every axis up and down",
+        "the calibration is too uncertain to use (predicted {what} error {value}, more than "
+        "{factor:g}x the {target} target); record more poses, still and away from iron, "
+        "covering every axis up and down",
+    ),
+    "accuracy": (
+        "warn",
+        "the predicted {what} error {value} is worse than the {target} target; record more "
+        "poses, still and away from iron, covering every axis up and down (or set the target "
+        "with --target-{option})",
+    ),
+    "untested": (
+        "warn",
+        "the fit certificate has {dof} degree(s) of freedom, too few ({minimum} or more) to "
+        "test the model or find a disturbed pose; record {more} more pose(s) ({needed} in all)",
+    ),
+    "implausible_gain": (
+        "warn",
+        "the {sensor}'s gain is implausible for its sensor class ({what} {value:.3g}, more than "
+        "{limit:.0%} off {expected}); check the columns, the units (--{option}) and that the "
+        "device was still and rigid in every pose",
     ),
     "rejected": (
         "warn",
@@ -122,10 +157,29 @@ RULES: dict[str, tuple[str, str]] = {
         "likelihood fit's by {excess:.3g}, χ²({dof}) p = {p:.2g}); the mle method would be more "
         "accurate",
     ),
+    "correlated_poses": (
+        "note",
+        "the poses are consecutive pieces of one continuous motion: neighbouring poses' "
+        "residuals are correlated (τ = {tau:.3g} poses, about {effective:.0f} independent of "
+        "{poses}), so the error bars are widened {widening:.2g}x and the fit certificate is "
+        "not a test of the model; rests (still detection) give a real test",
+    ),
+    "temperature_span": (
+        "note",
+        "the poses' temperatures span {span:.1f} K ({low:.1f} to {high:.1f} °C): temperature "
+        "terms need at least {need:g} K (power the board on cold and record poses while it "
+        "warms); calibrated at the mean temperature {mean:.1f} °C",
+    ),
     "implausible": (
         "warn",
         "the fit is implausible under the stated noise (J = {cost:.4g} for χ²({dof}), p = "
         "{p:.2g}); let fieldcal estimate the pose-level noise (pose noise auto)",
+    ),
+    "dropped_lines": (
+        "warn",
+        "{dropped} of {total} data lines ({share:.1%}) were dropped as unreadable ({which}); "
+        "the samples between are missing: check the cable, the baud rate and that the device "
+        "writes whole lines",
     ),
 }
 
@@ -133,15 +187,33 @@ RULES: dict[str, tuple[str, str]] = {
 CONDITION_LIMIT = 1e10
 #: A pose-level error this many times the per-sample noise draws a warning.
 POSE_NOISE_RATIO = 3.0
-#: Predicted errors beyond which a calibration is of no use (heading °, tilt °, relative norm).
-UNUSABLE = {"heading_deg": 20.0, "tilt_deg": 10.0, "accel_norm_rel": 0.2, "mag_norm_rel": 0.2}
+#: A predicted error this many times its target fails the verdict (``unusable``); beyond the
+#: target alone it warns (``accuracy``).
+UNUSABLE_FACTOR = 5.0
 #: Share of a sensor's samples cut as not still above which the verdict warns.
 TRIMMED = 0.05
+#: Share of a stream's data lines dropped as unreadable above which the verdict warns.
+DROPPED_LINES = 0.01
 #: Pose-level noise, relative to the field, that no rigid device at rest shows.
 NOT_RIGID = 0.05
 #: Smallest eigenvalue of the mean of ``u uᵀ`` over gravity directions for good coverage
 #: (1/3 for directions spread evenly over the sphere).
 COVERAGE = 0.04
+#: Fewest certificate degrees of freedom that test the model (``untested`` below).
+MIN_TEST_DOF = 10
+#: Plausible gains, per sensor: the largest departure of the gain's scale from 1 (judged only
+#: when the field's magnitude was given in the readings' unit) and of its shape (the symmetric
+#: factor divided by its scale: axis scales and cross terms) from the identity. MEMS
+#: accelerometers are within a few percent; magnetometers carry soft iron, so more is allowed.
+GAIN_SCALE = {"accel": 0.2, "mag": 0.3}
+GAIN_SHAPE = {"accel": 0.2, "mag": 0.5}
+#: A gain scale inside this range (raw units per unit of the given magnitude) means the
+#: readings are in the magnitude's unit (other units differ by 9.8 or more: g vs m/s², µT vs
+#: gauss 100, LSB thousands); only then is the scale judged.
+UNIT_RANGE = (0.5, 2.0)
+#: The option that sets each field's magnitude, and each sensor's name in the gain messages.
+MAGNITUDE_OPTION = {"accel": "gravity", "mag": "field-strength"}
+SENSOR_NAME = {"accel": "accelerometer", "mag": "magnetometer"}
 
 
 @dataclass
@@ -167,35 +239,55 @@ class ReferenceCheck:
     decided_mirrored: bool | None
 
 
-#: A fitted dip further than this many combined standard errors (plus the allowance) from the
-#: model's draws a warning.
-REFERENCE_SIGMAS = 3.0
+@dataclass(frozen=True)
+class Case:
+    """Everything the rules read: the finished calibration (in the fit's units), the pose
+    statistics it was fitted to, the trust path's findings, the predicted accuracy, the Earth's
+    field check, the targets, and ``magnitudes``: for each sensor whose field magnitude the user
+    gave, ``(factor, given)`` — the factor that takes the fitted gain to the user's units
+    (raw units per unit of the given magnitude) and the magnitude as given.
+
+    ``stats`` and ``found`` are ``None`` for a calibration from continuous motion
+    (:func:`fieldcal.trust.continuous_motion.trust_continuous`): the pose-level rules then do
+    not apply, the others read the trajectory (``cal.rotations``) where they read poses."""
+
+    cal: Calibration
+    stats: PoseStats | None
+    found: Findings | None
+    accuracy: Accuracy | None = None
+    reference: ReferenceCheck | None = None
+    targets: Targets = DEFAULT_TARGETS
+    magnitudes: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        """The sensors calibrated: the pose statistics', else the calibration's."""
+        if self.stats is not None:
+            return tuple(self.stats.sensors)
+        return tuple(s for s in ("accel", "mag") if getattr(self.cal, s) is not None)
+
+    def body_directions(self, sensor: str) -> Array:
+        """The unit field directions in the body frame, per pose (continuous motion: per kept
+        epoch of the trajectory, ``R_j`` applied to the sensor's reference field)."""
+        if self.stats is None:
+            x = np.asarray(self.cal.rotations) @ self.cal.reference(sensor)
+        else:
+            x = self.stats.sensor(sensor).means - self.cal.sensor(sensor).bias
+        return np.asarray(x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300))
 
 
-def _reference_rules(
-    add: Callable[..., None], dip: float, std: float | None, check: ReferenceCheck
-) -> None:
-    ref = check.field
-    where = {"model": ref.model, "place": ref.place, "expected": ref.dip_deg}
-    if check.decided_mirrored is None:
-        add("reference_undecided", dip=dip, **where)
-    elif check.decided_mirrored and not check.stated_mirrored:
-        add("reference_mirrored", **where)
-    elif not check.decided_mirrored and check.stated_mirrored:
-        add("reference_unmirrored", **where)
-    std = 0.0 if std is None else std
-    diff = abs(dip - ref.dip_deg)
-    if diff > REFERENCE_SIGMAS * math.hypot(std, ref.dip_std_deg) + check.allowance_deg:
-        add(
-            "reference_dip",
-            dip=dip,
-            std=std,
-            ref_std=ref.dip_std_deg,
-            diff=diff,
-            date=ref.date,
-            allowance=check.allowance_deg,
-            **where,
-        )
+#: What a check yields: a code of :data:`RULES` and the numbers its message needs.
+Fired = tuple[str, dict[str, object]]
+Check = Callable[[Case], Iterator[Fired]]
+
+#: A predicted error that a check compares with a target: (Accuracy attribute, what the
+#: message calls it, Targets attribute, --target-* option, is it relative).
+_ACCURACY = (
+    ("tilt_deg", "tilt", "tilt_deg", "tilt", False),
+    ("heading_deg", "heading", "heading_deg", "heading", False),
+    ("accel_norm_rel", "|a|", "norm_pct", "norm", True),
+    ("mag_norm_rel", "|m|", "norm_pct", "norm", True),
+)
 
 
 def _axis(directions: Array) -> str:
@@ -203,97 +295,347 @@ def _axis(directions: Array) -> str:
     return "xyz"[int(np.argmax(np.abs(V[:, 0])))]
 
 
-def _unit(x: Array) -> Array:
-    return np.asarray(x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300))
+# ----------------------------------------------------------------------------- the checks
+def _converged(case: Case) -> Iterator[Fired]:
+    if not case.cal.converged:
+        yield "not_converged", {"detail": case.cal.message or f"{case.cal.iterations} iterations"}
 
 
-def judge(
-    cal: Calibration,
-    stats: PoseStats,
-    found: Findings,
-    accuracy: Accuracy | None = None,
-    reference: ReferenceCheck | None = None,
-) -> Verdict:
-    """Apply :data:`RULES` to a finished calibration; the worst level wins. ``accuracy``, when
-    given, stands for ``cal.accuracy`` (so both can be attached in one step); ``reference``
-    compares the dip with the World Magnetic Model's (its sign is then settled, so the
-    negative-dip note is not given)."""
-    reasons: list[tuple[str, str]] = []
+def _degenerate(case: Case) -> Iterator[Fired]:
+    if case.stats is None or case.found is None:  # continuous: its identifiability check
+        return
+    if case.found.condition > CONDITION_LIMIT:
+        axis = _axis(case.body_directions(case.stats.sensors[0]))
+        yield "degenerate", {"condition": case.found.condition, "axis": axis}
 
-    def add(code: str, **values: object) -> None:
-        level, template = RULES[code]
-        reasons.append((level, template.format(**values)))
 
-    if not cal.converged:
-        add("not_converged", detail=cal.message or f"{cal.iterations} iterations")
-    sensors = stats.sensors
-    first = sensors[0]
-    body = {s: _unit(stats.sensor(s).means - cal.sensor(s).bias) for s in sensors}
-    if found.condition > CONDITION_LIMIT:
-        add("degenerate", condition=found.condition, axis=_axis(body[first]))
+def _rejections(case: Case) -> Iterator[Fired]:
+    found = case.found
+    if found is None:  # continuous: stretches are down-weighted, not dropped
+        return
     if 4 * len(found.rejected) > found.n_total:
-        add("too_many_rejected", rejected=len(found.rejected), total=found.n_total)
+        yield "too_many_rejected", {"rejected": len(found.rejected), "total": found.n_total}
     if found.unflagged_left:
-        add("unidentifiable", flagged=found.unflagged_left)
-    if "accel" in sensors and "mag" in sensors and stats.n_poses >= 5:
-        X = np.column_stack([stats.sensor("accel").means, np.ones(stats.n_poses)])
-        Y = stats.sensor("mag").means
-        coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
-        spread = np.linalg.norm(Y - Y.mean(axis=0))
-        residual = float(np.linalg.norm(Y - X @ coef) / spread) if spread > 0 else 0.0
-        if residual < 0.02:
-            add("same_sensor", residual=residual)
-    for s in sensors:
-        sc = cal.sensor(s)
-        radius = float(np.linalg.norm(sc.gain @ cal.reference(s)))
+        yield "unidentifiable", {"flagged": found.unflagged_left}
+
+
+def _same_sensor(case: Case) -> Iterator[Fired]:
+    stats = case.stats
+    if stats is None or not (
+        "accel" in stats.sensors and "mag" in stats.sensors and stats.n_poses >= 5
+    ):
+        return
+    X = np.column_stack([stats.sensor("accel").means, np.ones(stats.n_poses)])
+    Y = stats.sensor("mag").means
+    coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    spread = np.linalg.norm(Y - Y.mean(axis=0))
+    residual = float(np.linalg.norm(Y - X @ coef) / spread) if spread > 0 else 0.0
+    if residual < 0.02:
+        yield "same_sensor", {"residual": residual}
+
+
+def _pose_noise(case: Case) -> Iterator[Fired]:
+    if case.stats is None:  # no poses: no pose-level noise
+        return
+    for s in case.stats.sensors:
+        sc = case.cal.sensor(s)
+        radius = float(np.linalg.norm(sc.gain @ case.cal.reference(s)))
         if not radius > 0:
             continue
         if sc.pose_noise_std > NOT_RIGID * radius:
-            add("not_rigid", sensor=s, ratio=sc.pose_noise_std / radius)
+            yield "not_rigid", {"sensor": s, "ratio": sc.pose_noise_std / radius}
             continue
-        cov = stats.sensor(s).cov
+        cov = case.stats.sensor(s).cov
         sample = float(np.sqrt(np.trace(cov) / 3.0)) if cov is not None else 0.0
         if sample > 0 and sc.pose_noise_std > POSE_NOISE_RATIO * sample:
-            add("pose_noise", sensor=s, ratio=sc.pose_noise_std / sample)
-    for s in sensors:
-        trimmed = stats.sensor(s).trimmed
+            yield "pose_noise", {"sensor": s, "ratio": sc.pose_noise_std / sample}
+
+
+def _trimmed(case: Case) -> Iterator[Fired]:
+    if case.stats is None:  # no samples are cut from a continuous log
+        return
+    for s in case.stats.sensors:
+        st = case.stats.sensor(s)
+        trimmed = st.trimmed
         if trimmed is not None and trimmed.sum() > 0:
-            share = float(trimmed.sum() / (trimmed.sum() + stats.sensor(s).counts.sum()))
+            share = float(trimmed.sum() / (trimmed.sum() + st.counts.sum()))
             if share > TRIMMED:
-                add("trimmed", share=share, sensor=s, poses=int(np.count_nonzero(trimmed)))
-    accuracy = cal.accuracy if accuracy is None else accuracy
-    if accuracy is not None:
-        for what, limit in UNUSABLE.items():
-            value = getattr(accuracy, what)
-            if value is not None and not value <= limit:  # NaN counts as unusable
-                shown = f"{value:.3g}°" if what.endswith("deg") else f"{value:.1%}"
-                add("unusable", what=what.replace("_deg", "").replace("_rel", ""), value=shown)
-                break
-    if found.rejected:
-        which = ", ".join(f"pose {i} ({kind})" for i, kind in found.rejected[:6])
-        more = "" if len(found.rejected) <= 6 else f" and {len(found.rejected) - 6} more"
-        add("rejected", count=len(found.rejected), which=which + more)
-    directions = body[first]
+                yield (
+                    "trimmed",
+                    {
+                        "share": share,
+                        "sensor": s,
+                        "poses": int(np.count_nonzero(trimmed)),
+                    },
+                )
+
+
+def _accuracy(case: Case) -> Iterator[Fired]:
+    """``unusable`` for the first prediction beyond :data:`UNUSABLE_FACTOR` times its target
+    (NaN counts), otherwise ``accuracy`` for each prediction beyond its target."""
+    acc = case.accuracy if case.accuracy is not None else case.cal.accuracy
+    if acc is None:
+        return
+    worse = []
+    for attribute, what, target_name, option, relative in _ACCURACY:
+        value = getattr(acc, attribute)
+        if value is None:
+            continue
+        target = float(getattr(case.targets, target_name)) / (100.0 if relative else 1.0)
+        shown = f"{value:.1%}" if relative else f"{value:.3g}°"
+        goal = f"{100 * target:g}%" if relative else f"{target:g}°"
+        numbers: dict[str, object] = {
+            "what": what,
+            "value": shown,
+            "target": goal,
+            "option": option,
+        }
+        if not value <= UNUSABLE_FACTOR * target:
+            yield "unusable", {**numbers, "factor": UNUSABLE_FACTOR}
+            return
+        if value > target:
+            worse.append(numbers)
+    for numbers in worse:
+        yield "accuracy", numbers
+
+
+def _untested(case: Case) -> Iterator[Fired]:
+    diag = case.cal.diagnostics
+    if case.stats is None or diag is None or diag.dof >= MIN_TEST_DOF:
+        return
+    # each further pose adds its readings (3 per sensor) less its own rotation's angles
+    # (3 with both sensors; 2 tilt angles for one)
+    per_pose = 3 if len(case.stats.sensors) == 2 else 1
+    more = math.ceil((MIN_TEST_DOF - max(diag.dof, 0)) / per_pose)
+    yield (
+        "untested",
+        {
+            "dof": diag.dof,
+            "minimum": MIN_TEST_DOF,
+            "more": more,
+            "needed": case.stats.n_poses + more,
+        },
+    )
+
+
+def _shape(gain: Array) -> tuple[float, Array]:
+    """The gain's scale (geometric mean of its singular values) and its symmetric factor
+    (``K = U P``, ``P = V Σ Vᵀ``) divided by that scale: the axis scales and cross terms."""
+    _, sigma, Vt = np.linalg.svd(gain)
+    scale = float(np.exp(np.mean(np.log(sigma))))
+    return scale, np.asarray((Vt.T * (sigma / scale)) @ Vt)
+
+
+def _gains(case: Case) -> Iterator[Fired]:
+    for s in case.sensors:
+        gain = case.cal.sensor(s).gain
+        if not np.all(np.isfinite(gain)) or np.linalg.matrix_rank(gain) != 3:
+            continue
+        scale, shape = _shape(gain)
+        numbers: dict[str, object] = {"sensor": SENSOR_NAME[s], "option": MAGNITUDE_OPTION[s]}
+        given = case.magnitudes.get(s)
+        real = None if given is None else scale * given[0]
+        # only within UNIT_RANGE are the readings in the magnitude's unit (LSB with --gravity
+        # 9.80665 is a fine use: any scale is right then)
+        in_unit = real is not None and UNIT_RANGE[0] <= real <= UNIT_RANGE[1]
+        if in_unit and real is not None and abs(real - 1.0) > GAIN_SCALE[s]:
+            yield (
+                "implausible_gain",
+                {
+                    **numbers,
+                    "what": "scale",
+                    "value": real,
+                    "limit": GAIN_SCALE[s],
+                    "expected": "1",
+                },
+            )
+            continue
+        off = np.abs(shape - np.eye(3))
+        if off.max() > GAIN_SHAPE[s]:
+            i, j = np.unravel_index(int(np.argmax(off)), off.shape)
+            yield (
+                "implausible_gain",
+                {
+                    **numbers,
+                    "what": "relative axis scale" if i == j else "cross-axis term",
+                    "value": float(shape[i, j]),
+                    "limit": GAIN_SHAPE[s],
+                    "expected": "1" if i == j else "0",
+                },
+            )
+
+
+def _coverage(case: Case) -> Iterator[Fired]:
+    if case.found is not None and case.found.rejected:
+        rejected = case.found.rejected
+        which = ", ".join(f"pose {i} ({kind})" for i, kind in rejected[:6])
+        more = "" if len(rejected) <= 6 else f" and {len(rejected) - 6} more"
+        yield "rejected", {"count": len(rejected), "which": which + more}
+    if case.stats is None and len(case.cal.rotations) == 0:
+        return
+    directions = case.body_directions(case.sensors[0])
     lowest = float(np.linalg.eigvalsh(directions.T @ directions / len(directions))[0])
     if lowest < COVERAGE:
-        add("coverage", axis=_axis(directions))
-    dip = cal.dip_deg
-    if dip is not None and reference is not None:
-        _reference_rules(add, dip, cal.dip_std_deg, reference)
-    elif dip is not None and dip < 0:
-        add("negative_dip", dip=dip)
-    if found.excess is not None:
-        add("not_ml", **found.excess)
-    diag = cal.diagnostics
+        yield "coverage", {"axis": _axis(directions)}
+
+
+#: A fitted dip further than this many combined standard errors (plus the allowance) from the
+#: model's draws a warning.
+REFERENCE_SIGMAS = 3.0
+
+
+def _dip(case: Case) -> Iterator[Fired]:
+    dip = case.cal.dip_deg
+    if dip is None:
+        return
+    check = case.reference
+    if check is None:
+        if dip < 0:
+            yield "negative_dip", {"dip": dip}
+        return
+    ref = check.field
+    where = {"model": ref.model, "place": ref.place, "expected": ref.dip_deg}
+    if check.decided_mirrored is None:
+        yield "reference_undecided", {"dip": dip, **where}
+    elif check.decided_mirrored and not check.stated_mirrored:
+        yield "reference_mirrored", where
+    elif not check.decided_mirrored and check.stated_mirrored:
+        yield "reference_unmirrored", where
+    std = case.cal.dip_std_deg or 0.0
+    diff = abs(dip - ref.dip_deg)
+    if diff > REFERENCE_SIGMAS * math.hypot(std, ref.dip_std_deg) + check.allowance_deg:
+        yield (
+            "reference_dip",
+            {
+                "dip": dip,
+                "std": std,
+                "ref_std": ref.dip_std_deg,
+                "diff": diff,
+                "date": ref.date,
+                "allowance": check.allowance_deg,
+                **where,
+            },
+        )
+
+
+def _likelihood(case: Case) -> Iterator[Fired]:
+    if case.stats is None or case.found is None:  # continuous: correlated, not a χ² test
+        return
+    if case.found.excess is not None:
+        yield "not_ml", dict(case.found.excess)
+    diag = case.cal.diagnostics
     if (
         diag is not None
         and diag.status == "ok"
         and diag.dof > 0
         and diag.p_value < 1e-4
-        and not found.rejected
+        and not case.found.rejected
+        and "pose_correlation" not in case.cal.options  # then the χ² is no test
     ):
-        add("implausible", cost=diag.statistic, dof=diag.dof, p=diag.p_value)
-    order = {"fail": 2, "warn": 1, "note": 0}
-    level = max((lv for lv, _ in reasons if lv != "note"), key=lambda lv: order[lv], default="pass")
-    ranked = sorted(reasons, key=lambda r: -order[r[0]])
-    return Verdict(level, tuple(text for _, text in ranked))
+        yield "implausible", {"cost": diag.statistic, "dof": diag.dof, "p": diag.p_value}
+
+
+def _correlated(case: Case) -> Iterator[Fired]:
+    """Poses cut from one continuous motion (:mod:`.correlation` measured and applied τ)."""
+    found = case.cal.options.get("pose_correlation")
+    if isinstance(found, Mapping):
+        yield (
+            "correlated_poses",
+            {
+                "tau": found["tau"],
+                "effective": found["effective_poses"],
+                "poses": found["poses"],
+                "widening": found["widening"],
+            },
+        )
+
+
+def _temperature_span(case: Case) -> Iterator[Fired]:
+    """A temperature column whose span was too small for temperature terms
+    (:mod:`fieldcal.likelihood.temperature`): the calibration holds at the mean temperature."""
+    t = None if case.stats is None else case.stats.temperature
+    if t is not None and t.refused:
+        low, high = (float(x) for x in t.span)
+        values = {"span": high - low, "low": low, "high": high, "mean": t.reference}
+        yield "temperature_span", {**values, "need": MIN_SPAN_K}
+
+
+#: The rules, run in this order by :func:`judge` (reasons of one level keep it).
+CHECKS: tuple[Check, ...] = (
+    _converged,
+    _degenerate,
+    _rejections,
+    _same_sensor,
+    _pose_noise,
+    _trimmed,
+    _accuracy,
+    _untested,
+    _gains,
+    _coverage,
+    _dip,
+    _likelihood,
+    _correlated,
+    _temperature_span,
+)
+
+_ORDER = {"fail": 2, "warn": 1, "note": 0}
+
+
+def reason(code: str, **values: object) -> Reason:
+    """The :class:`Reason` of rule ``code`` with its message filled from ``values``."""
+    level, template = RULES[code]
+    return Reason(code, level, template.format(**values))
+
+
+def judge(
+    cal: Calibration,
+    stats: PoseStats | None,
+    found: Findings | None,
+    accuracy: Accuracy | None = None,
+    reference: ReferenceCheck | None = None,
+    *,
+    targets: Targets | None = None,
+    magnitudes: Mapping[str, tuple[float, float]] | None = None,
+    given: Sequence[Reason] = (),
+) -> Verdict:
+    """Run :data:`CHECKS` on a finished calibration; the worst level wins (``note`` never
+    raises it), reasons most severe first.
+
+    ``accuracy``, when given, stands for ``cal.accuracy`` (so both can be attached in one
+    step); ``reference`` compares the dip with the World Magnetic Model's (its sign is then
+    settled, so the negative-dip note is not given); ``targets`` (default :class:`Targets` ())
+    are what the predicted accuracy is compared with; ``magnitudes`` see :class:`Case`.
+    ``stats`` and ``found`` are ``None`` for a calibration from continuous motion (the
+    pose-level rules do not apply); ``given`` are reasons its method found itself (the
+    continuous estimator's stretch- and motion-level ones), kept in the verdict.
+    """
+    case = Case(
+        cal,
+        stats,
+        found,
+        accuracy,
+        reference,
+        DEFAULT_TARGETS if targets is None else targets,
+        {} if magnitudes is None else magnitudes,
+    )
+    reasons = [reason(code, **values) for check in CHECKS for code, values in check(case)]
+    reasons += list(given)
+    worst = max((_ORDER[r.level] for r in reasons), default=0)
+    level = {2: "fail", 1: "warn", 0: "pass"}[worst]
+    return Verdict(level, tuple(sorted(reasons, key=lambda r: -_ORDER[r.level])))
+
+
+def with_dropped_lines(verdict: Verdict, dropped: Mapping[str, int], rows: int) -> Verdict:
+    """``verdict`` with the input rule ``dropped_lines`` applied: a stream's data lines dropped
+    as unreadable (``dropped``: count by reason) against the ``rows`` kept; more than
+    :data:`DROPPED_LINES` of them warns. Applied by ``fieldcal capture``, which sees the
+    lines (the fit sees only the rows kept)."""
+    count = sum(dropped.values())
+    total = count + rows
+    if total == 0 or count <= DROPPED_LINES * total:
+        return verdict
+    which = ", ".join(f"{k} {v}" for k, v in dropped.items() if v)
+    added = reason("dropped_lines", dropped=count, total=total, share=count / total, which=which)
+    reasons = sorted((*verdict.reasons, added), key=lambda r: -_ORDER[r.level])
+    worst = max({"pass": 0, "warn": 1, "fail": 2}[verdict.level], _ORDER[added.level])
+    return Verdict({2: "fail", 1: "warn", 0: "pass"}[worst], tuple(reasons))

@@ -20,9 +20,16 @@ from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
-from ...stats.poses import PoseStats, brief, check_spread
-from .lm import Result, levenberg_marquardt
-from .model import Problem, State, build_problem, field
+from ...likelihood.levenberg import Result, levenberg_marquardt
+from ...likelihood.pose_model import (
+    Problem,
+    State,
+    build_problem,
+    field,
+    state_from_calibration,
+)
+from ...stats.pose_stats import PoseStats, brief, check_spread
+from ...thermal import TemperatureModel
 from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
 
 __all__ = ["fit", "state_from_calibration"]
@@ -43,13 +50,14 @@ PENCIL_POSES = 12
 P_RETRY = 0.01
 
 
-def state_from_calibration(problem: Problem, cal: Calibration) -> State:
-    """The optimiser's state for any calibration in fieldcal's gauge."""
-    gains = {s: np.array(cal.sensor(s).gain) for s in problem.sensors}
-    biases = {s: np.array(cal.sensor(s).bias) for s in problem.sensors}
-    gains[problem.frame] = 0.5 * (gains[problem.frame] + gains[problem.frame].T)
-    dip = np.radians(cal.dip_deg or 0.0) if problem.joint else 0.0
-    return State(gains, biases, float(dip), np.array(cal.rotations))
+def _temperature_model(
+    problem: Problem, stats: PoseStats, state: State, s: str
+) -> TemperatureModel | None:
+    """Sensor ``s``'s bias against temperature (None when the poses carry no temperature)."""
+    t = stats.temperature
+    if t is None:
+        return None
+    return TemperatureModel(t.reference, state.temp(problem, s), t.span, t.refused)
 
 
 def _canonical(problem: Problem, state: State) -> State:
@@ -90,7 +98,7 @@ def fit(
     Parameters
     ----------
     stats : PoseStats
-        Pose means with their covariances (``Σ/Δ_i + Q``, :class:`~fieldcal.stats.poses.
+        Pose means with their covariances (``Σ/Δ_i + Q``, :class:`~fieldcal.stats.pose_stats.
         SensorStats`).
     raw_accel, raw_mag
         The raw samples (unused: the pose statistics are sufficient).
@@ -192,6 +200,7 @@ def fit(
             gain=state.gains[s],
             bias=state.biases[s],
             noise_cov=np.zeros((3, 3)) if (cov := stats.sensor(s).cov) is None else cov,
+            temperature=_temperature_model(problem, stats, state, s),
         )
         for s in sensors
     }

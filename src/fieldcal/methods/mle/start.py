@@ -22,7 +22,7 @@ from ...geometry.alignment import constant_angle, constant_angle_rows
 from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
 from ...geometry.quadrics import family_fit, family_fits, pencil_fits, spd_sqrt
 from ...geometry.rotations import exp_so3, wahba
-from .model import Problem, State, field
+from ...likelihood.pose_model import Problem, State, field
 
 Array = NDArray[np.float64]
 

@@ -13,15 +13,55 @@ ArduPilot's corrections, as its source states them:
 So ``COMPASS_OFS = −bias`` and ``M = c P_m⁻¹`` (the magnetometer-symmetric gauge), and the
 accelerometer keeps its diagonal only; what each drops is computed by
 :func:`.autopilot.autopilot` and written in the file.
+
+Every name written is an ArduPilot parameter (``COMPASS_OFS_X`` … in AP_Compass.cpp's
+``var_info``, ``INS_ACCOFFS_X``/``INS_ACCSCAL_X`` in AP_InertialSensor.cpp's). Each value is
+checked against what ArduPilot accepts (:data:`RANGES`):
+
+- ``COMPASS_OFS_*`` (mG): ``|ofs| < COMPASS_OFFS_MAX`` per axis
+  (``CompassCalibrator::fit_acceptable``, libraries/AP_Compass/CompassCalibrator.cpp, commit
+  015eed715961c0686bffa5c924a4600f50c8eead), with the default ``AP_COMPASS_OFFSETS_MAX_DEFAULT``
+  1800 (libraries/AP_Compass/AP_Compass.cpp); the arming check ("Compass offsets too high")
+  compares the offsets' length with the same maximum;
+- ``COMPASS_DIA_*``: ``0.2 < dia < 5``; ``COMPASS_ODI_*``: ``|odi| < 1`` (``fit_acceptable``);
+- ``INS_ACCOFFS_*`` (m/s²): ``@Range: -3.5 3.5``; ``INS_ACCSCAL_*``: ``@Range: 0.8 1.2``
+  (libraries/AP_InertialSensor/AP_InertialSensor.cpp, parameter metadata; the accelerometer
+  calibrator's ``AccelCalibrator::accept_result`` refuses scales outside 0.8-1.2 too).
+
+Outside a range the export is refused in one line naming the parameter, its value and the range,
+unless ``allow_out_of_range``, which writes it with a marking comment above it.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...calibration import Calibration
-from .autopilot import accel_error_text, autopilot, parameters
+from ...errors import InputError
+from .autopilot import (
+    ParameterRange,
+    accel_error_text,
+    autopilot,
+    check_ranges,
+    parameter_lines,
+    parameters,
+)
 from .common import comment_header, exact
 
-__all__ = ["CONTENT", "FORMULA", "write"]
+__all__ = ["CONTENT", "FORMULA", "OFFSETS_MAX", "RANGES", "write"]
+
+#: ``COMPASS_OFFS_MAX``'s default (mG), ``AP_COMPASS_OFFSETS_MAX_DEFAULT`` in AP_Compass.cpp.
+OFFSETS_MAX = 1800.0
+
+_FIT = "CompassCalibrator::fit_acceptable"
+#: The ranges ArduPilot accepts, with where its source states them.
+RANGES = (
+    ParameterRange("COMPASS_OFS_{}", -OFFSETS_MAX, OFFSETS_MAX, True, f"{_FIT}, COMPASS_OFFS_MAX"),
+    ParameterRange("COMPASS_DIA_{}", 0.2, 5.0, True, _FIT),
+    ParameterRange("COMPASS_ODI_{}", -1.0, 1.0, True, _FIT),
+    ParameterRange("INS_ACCOFFS_{}", -3.5, 3.5, False, "AP_InertialSensor.cpp @Range"),
+    ParameterRange("INS_ACCSCAL_{}", 0.8, 1.2, False, "AP_InertialSensor.cpp @Range"),
+)
 
 FORMULA = (
     "mag_mG = M * (raw + COMPASS_OFS), M = [DIA_X ODI_X ODI_Y; ODI_X DIA_Y ODI_Z; "
@@ -33,13 +73,16 @@ CONTENT = (
 )
 
 
-def write(cal: Calibration) -> str:
+def write(cal: Calibration, *, allow_out_of_range: bool = False) -> str:
     """ArduPilot parameters, ``NAME VALUE`` per line, ``#`` comments.
 
     Parameters
     ----------
     cal : Calibration
         Both sensors; the magnetometer scaled to a field strength (``--field-strength``).
+    allow_out_of_range : bool
+        Write values outside the range ArduPilot accepts (:data:`RANGES`), each marked by a
+        comment line above it; by default such a value is refused.
 
     Returns
     -------
@@ -48,9 +91,27 @@ def write(cal: Calibration) -> str:
     Raises
     ------
     InputError
-        A unit that cannot be converted, a missing sensor, mirrored magnetometer axes.
+        A unit that cannot be converted, a missing sensor, mirrored magnetometer axes, a value
+        outside its range (without ``allow_out_of_range``).
     """
     ap = autopilot(cal, "mG")
+    names = (
+        "COMPASS_OFS_{}",
+        "COMPASS_DIA_{}",
+        "COMPASS_ODI_{}",
+        "INS_ACCOFFS_{}",
+        "INS_ACCSCAL_{}",
+    )
+    params = parameters(ap, -ap.mag_bias, names)
+    outside = check_ranges(params, RANGES, "ArduPilot", allow_out_of_range=allow_out_of_range)
+    length = float(np.linalg.norm(ap.mag_bias))
+    long_offsets = not length <= OFFSETS_MAX
+    if long_offsets and not allow_out_of_range:
+        raise InputError(
+            f"cannot export: the length of COMPASS_OFS_X/Y/Z = {length:.6g} mG exceeds "
+            f"COMPASS_OFFS_MAX {OFFSETS_MAX:g} (ArduPilot's arming check: Compass offsets too "
+            "high); check the calibration's units, or pass --allow-out-of-range to write it marked"
+        )
     lines = comment_header(cal, "#")
     lines += [
         f"# ArduPilot convention: {FORMULA}",
@@ -67,13 +128,18 @@ def write(cal: Calibration) -> str:
         "# DROPPED: INS_ACCSCAL is per axis, so the accelerometer's cross-axis terms are lost:",
         f"# {accel_error_text(ap)}",
         "# The gyroscope is not written: ArduPilot estimates its offsets at boot.",
+        "# Checked against the ranges ArduPilot accepts (CompassCalibrator::fit_acceptable,",
+        f"# COMPASS_OFFS_MAX {OFFSETS_MAX:g}, INS_ACCOFFS/INS_ACCSCAL @Range): "
+        + (
+            f"{len(outside) + long_offsets} OUTSIDE, written marked."
+            if outside or long_offsets
+            else "all inside."
+        ),
     ]
-    names = (
-        "COMPASS_OFS_{}",
-        "COMPASS_DIA_{}",
-        "COMPASS_ODI_{}",
-        "INS_ACCOFFS_{}",
-        "INS_ACCSCAL_{}",
-    )
-    lines += [f"{name} {exact(value)}" for name, value in parameters(ap, -ap.mag_bias, names)]
+    if long_offsets:
+        lines.append(
+            f"# OUT OF RANGE (--allow-out-of-range): the length of COMPASS_OFS_X/Y/Z, {length:.6g},"
+            f" exceeds COMPASS_OFFS_MAX {OFFSETS_MAX:g}"
+        )
+    lines += parameter_lines(params, outside, lambda name, value: f"{name} {exact(value)}")
     return "\n".join(lines) + "\n"

@@ -21,6 +21,7 @@ offsets are in those raw units, which fieldcal cannot check (every file says so)
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,10 +36,13 @@ from .common import corrections
 __all__ = [
     "STANDARD_GRAVITY",
     "AutopilotCalibration",
+    "ParameterRange",
     "accel_error_text",
     "accel_factor",
     "autopilot",
+    "check_ranges",
     "mag_factor",
+    "parameter_lines",
     "parameters",
 ]
 
@@ -170,6 +174,15 @@ def autopilot(cal: Calibration, mag_unit: str) -> AutopilotCalibration:
     P_m, U_m = _polar(np.asarray(cal.mag.gain, dtype=float))
     P_a, U_a = _polar(np.asarray(cal.accel.gain, dtype=float))
     if np.linalg.det(U_m) < 0 or np.linalg.det(U_a) < 0:
+        folded = cal.options.get("mag_axes")
+        if folded:
+            # the map is already in the calibration: advising --mag-axes would contradict it
+            raise InputError(
+                f"cannot export: with the axis map {folded} folded in, the magnetometer's axes "
+                "are still mirrored relative to the accelerometer's, which an autopilot's "
+                "symmetric matrix cannot hold; check the map (one axis sign is likely wrong) "
+                "and calibrate again"
+            )
         raise InputError(
             "cannot export: the magnetometer's axes are mirrored relative to the accelerometer's; "
             "an autopilot's symmetric matrix cannot hold that: set the compass orientation "
@@ -218,3 +231,112 @@ def accel_error_text(ap: AutopilotCalibration) -> str:
         f"error up to {bound:.6g} m/s² at 1 g ({100 * bound / STANDARD_GRAVITY:.4g} % of g), "
         "any direction."
     )
+
+
+@dataclass(frozen=True)
+class ParameterRange:
+    """The values an autopilot accepts for a group of parameters.
+
+    Attributes
+    ----------
+    template : str
+        The parameter name with ``{}`` for the axis (``"COMPASS_DIA_{}"``).
+    low, high : float
+        The bounds; ``None`` for no bound on that side.
+    strict : bool
+        Whether the bounds themselves are refused (``low < v < high``).
+    source : str
+        Where the firmware states it (file and function or parameter metadata).
+    """
+
+    template: str
+    low: float | None
+    high: float | None
+    strict: bool
+    source: str
+
+    def accepts(self, value: float) -> bool:
+        """Whether ``value`` is inside the range (a non-finite value never is)."""
+        if not np.isfinite(value):
+            return False
+        if self.low is not None and (value <= self.low if self.strict else value < self.low):
+            return False
+        return not (
+            self.high is not None and (value >= self.high if self.strict else value > self.high)
+        )
+
+    def text(self) -> str:
+        """The range as the error states it: ``(0.2, 5)``, ``[-3.5, 3.5]``, ``> 0``."""
+        if self.low is None:
+            return f"{'<' if self.strict else '<='} {self.high:g}"
+        if self.high is None:
+            return f"{'>' if self.strict else '>='} {self.low:g}"
+        a, b = ("(", ")") if self.strict else ("[", "]")
+        return f"{a}{self.low:g}, {self.high:g}{b}"
+
+
+def check_ranges(
+    params: list[tuple[str, float]],
+    ranges: tuple[ParameterRange, ...],
+    autopilot_name: str,
+    *,
+    allow_out_of_range: bool,
+) -> dict[str, ParameterRange]:
+    """The parameters outside the range the autopilot accepts.
+
+    Parameters
+    ----------
+    params : list of (str, float)
+        The parameters as they will be written.
+    ranges : tuple of ParameterRange
+        The autopilot's ranges (a parameter without one is not checked).
+    autopilot_name : str
+        ``"ArduPilot"`` or ``"PX4"``, for the message.
+    allow_out_of_range : bool
+        Write them anyway (each marked in the file); otherwise the first one is refused.
+
+    Returns
+    -------
+    dict
+        Name -> the range it is outside (empty when every value is accepted).
+
+    Raises
+    ------
+    InputError
+        A value outside its range, unless ``allow_out_of_range``: one line naming the
+        parameter, its value, the range and the option.
+    """
+    by_name = {r.template.format(axis): r for r in ranges for axis in "XYZ"}
+    outside = {
+        name: by_name[name]
+        for name, value in params
+        if name in by_name and not by_name[name].accepts(value)
+    }
+    if outside and not allow_out_of_range:
+        name, rng = next(iter(outside.items()))
+        value = dict(params)[name]
+        more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
+        raise InputError(
+            f"cannot export: {name} = {value:.6g} is outside the range {autopilot_name} "
+            f"accepts, {rng.text()} ({rng.source}){more}; check the calibration's units and "
+            "verdict, or pass --allow-out-of-range to write it marked"
+        )
+    return outside
+
+
+def parameter_lines(
+    params: list[tuple[str, float]],
+    outside: dict[str, ParameterRange],
+    line: Callable[[str, float], str],
+) -> list[str]:
+    """The parameter lines, each one outside its range preceded by a marking comment."""
+    out: list[str] = []
+    for name, value in params:
+        if name in outside:
+            rng = outside[name]
+            out.append(
+                f"# OUT OF RANGE (--allow-out-of-range): {name} {value:.6g} is outside "
+                f"{rng.text()} ({rng.source})"
+            )
+        out.append(line(name, value))
+    return out

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...calibration import Calibration
-from .common import NAMES, corrections, provenance
+from .common import NAMES, TEMPERATURE_FORMULA, corrections, cubic, provenance, temperature_terms
 
 __all__ = ["CONTENT", "FORMULA", "c_float", "write"]
 
@@ -17,7 +17,9 @@ CONTENT = (
     "the same for `MAG` (and `GYRO`, in rad/s, when calibrated), and "
     "`fieldcal_apply(M, B, raw, out)`; for a Kalman filter each sensor's `NOISE_COV` and "
     "`RESIDUAL_COV` (calibrated units²), `FIELDCAL_GRAVITY_NED`, `FIELDCAL_MAGNETIC_NED` and, "
-    "with `--location`, `FIELDCAL_DECLINATION_DEG`"
+    "with `--location`, `FIELDCAL_DECLINATION_DEG`; with temperature terms each such sensor's "
+    "`FIELDCAL_<SENSOR>_TEMP[3]` (T_ref, T_min, T_max), `FIELDCAL_<SENSOR>_TEMP_COEF[3][3]` "
+    "(c1, c2, c3 per row) and `fieldcal_apply_at(M, B, TEMP, C, raw, t, out)`"
 )
 
 _FLOAT32 = np.finfo(np.float32)
@@ -108,6 +110,40 @@ def _filter_lines(cal: Calibration) -> list[str]:
     return [*lines, ""]
 
 
+def _temperature_lines(cal: Calibration) -> list[str]:
+    """Each sensor's temperature terms and ``fieldcal_apply_at`` (nothing without terms, so the
+    header is then the one a calibration without a temperature column gives)."""
+    terms = temperature_terms(cal)
+    if not terms:
+        return []
+    lines = [f"/* temperature terms: {TEMPERATURE_FORMULA} */"]
+    for name, model in terms:
+        tag = name.upper()
+        span = np.array([model.reference, *model.span], dtype=float)
+        lines += _array(
+            f"FIELDCAL_{tag}_TEMP",
+            span,
+            f"{NAMES[name]}: T_ref, T_min, T_max (deg C, the die temperature as logged)",
+        )
+        lines += _array(
+            f"FIELDCAL_{tag}_TEMP_COEF",
+            cubic(model),
+            f"{NAMES[name]}: c1, c2, c3 per row (raw units per K, K^2, K^3)",
+        )
+    return [
+        *lines,
+        "static inline void fieldcal_apply_at(const float M[3][3], const float B[3],",
+        "                                     const float TEMP[3], const float C[3][3],",
+        "                                     const float raw[3], float t, float out[3]) {",
+        "  const float u = (t < TEMP[1] ? TEMP[1] : (t > TEMP[2] ? TEMP[2] : t)) - TEMP[0];",
+        "  float b[3];",
+        "  for (int j = 0; j < 3; j++) b[j] = B[j] + ((C[2][j] * u + C[1][j]) * u + C[0][j]) * u;",
+        "  fieldcal_apply(M, b, raw, out);",
+        "}",
+        "",
+    ]
+
+
 def write(cal: Calibration) -> str:
     """A C header with ``static const float`` arrays and the formula in a comment.
 
@@ -129,6 +165,13 @@ def write(cal: Calibration) -> str:
         " * with M = FIELDCAL_<SENSOR>_MATRIX (row major) and B = FIELDCAL_<SENSOR>_BIAS,",
         " * as fieldcal_apply(M, B, raw, out) below does.",
         " * Every sensor's output is in one common body frame (the gyroscope's in rad/s).",
+    ]
+    if temperature_terms(cal):
+        lines += [
+            " * With the die temperature t (deg C): fieldcal_apply_at(M, B, TEMP, C, raw, t, out),",
+            " * TEMP = FIELDCAL_<SENSOR>_TEMP, C = FIELDCAL_<SENSOR>_TEMP_COEF: the bias at t.",
+        ]
+    lines += [
         " */",
         "#ifndef FIELDCAL_CALIBRATION_H",
         "#define FIELDCAL_CALIBRATION_H",
@@ -149,6 +192,7 @@ def write(cal: Calibration) -> str:
         "  for (int i = 0; i < 3; i++) out[i] = M[i][0] * d[0] + M[i][1] * d[1] + M[i][2] * d[2];",
         "}",
         "",
+        *_temperature_lines(cal),
         "#endif /* FIELDCAL_CALIBRATION_H */",
         "",
     ]

@@ -1,4 +1,5 @@
-"""What every export writes: the correction matrices, the provenance lines, exact numbers."""
+"""What every export writes: the correction matrices, the provenance and verdict lines, exact
+numbers."""
 
 from __future__ import annotations
 
@@ -8,8 +9,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...calibration import GYRO, SENSORS, Calibration, SensorCalibration
+from ...thermal import TemperatureModel
 
-__all__ = ["NAMES", "comment_header", "corrections", "exact", "provenance"]
+__all__ = [
+    "MAX_TEMPERATURE_ORDER",
+    "NAMES",
+    "TEMPERATURE_FORMULA",
+    "comment_header",
+    "corrections",
+    "cubic",
+    "exact",
+    "provenance",
+    "temperature_terms",
+    "verdict_line",
+]
 
 Array = NDArray[np.float64]
 
@@ -63,6 +76,50 @@ def corrections(cal: Calibration) -> list[tuple[str, Array, Array]]:
     return out
 
 
+#: The highest order an export holds (PX4's cubic ``TC_*`` polynomials; fieldcal fits at most
+#: this, :data:`fieldcal.likelihood.temperature.MAX_ORDER`).
+MAX_TEMPERATURE_ORDER = 3
+#: The bias's temperature terms as every export states them (``docs/methods/temperature.md``).
+TEMPERATURE_FORMULA = (
+    "bias(T) = bias + c1*d + c2*d^2 + c3*d^3, d = min(max(T, T_min), T_max) - T_ref (T in deg C)"
+)
+
+
+def temperature_terms(cal: Calibration) -> list[tuple[str, TemperatureModel]]:
+    """``(sensor, model)`` for each sensor whose bias has fitted temperature terms (order 1 or
+    more), in the order of :func:`corrections`; empty for a calibration without any, whose
+    exports are then exactly those of a calibration made without a temperature column.
+
+    Parameters
+    ----------
+    cal : Calibration
+
+    Returns
+    -------
+    list of (str, TemperatureModel)
+    """
+    out: list[tuple[str, TemperatureModel]] = []
+    for name in (*SENSORS, GYRO):
+        sensor: SensorCalibration | None = getattr(cal, name)
+        model = None if sensor is None else sensor.temperature
+        if model is not None and model.order > 0:
+            if model.order > MAX_TEMPERATURE_ORDER:
+                raise ValueError(
+                    f"cannot export: the {NAMES[name]}'s temperature terms are of order "
+                    f"{model.order}; the exports hold at most {MAX_TEMPERATURE_ORDER} (cubic)"
+                )
+            out.append((name, model))
+    return out
+
+
+def cubic(model: TemperatureModel) -> Array:
+    """(3, 3): the coefficients ``c1, c2, c3`` per row (raw units per K^k), zeros beyond the
+    model's order."""
+    out = np.zeros((MAX_TEMPERATURE_ORDER, 3))
+    out[: model.order] = model.coefficients
+    return out
+
+
 def exact(x: float) -> str:
     """The shortest text that reads back as the same double (``1.0``, ``1e+30``).
 
@@ -78,9 +135,39 @@ def comment_header(cal: Calibration, marker: str) -> list[str]:
     ]
 
 
+def verdict_line(cal: Calibration) -> str:
+    """The verdict as one line: ``verdict: WARN (codes: accuracy, untested)``.
+
+    The codes are what scripts read (``Reason.code``); a reason without a code (an older
+    verdict, a plain string) is named by its first words. A calibration without a verdict
+    says so, so every export carries the line.
+
+    Parameters
+    ----------
+    cal : Calibration
+
+    Returns
+    -------
+    str
+        One line, no newline, no comment marker.
+    """
+    verdict = cal.verdict
+    if verdict is None:
+        return "verdict: none (this calibration was not judged)"
+    codes = []
+    for reason in verdict.reasons:
+        code = str(getattr(reason, "code", reason))
+        code = " ".join(code.split())  # a plain-text reason: one line
+        codes.append(code if len(code) <= 60 else code[:57] + "...")
+    listed = f" (codes: {', '.join(codes)})" if codes else " (no reasons)"
+    return f"verdict: {str(verdict.level).upper()}{listed}"
+
+
 def provenance(cal: Calibration) -> list[str]:
-    """Lines naming the writer, the method, the calibrated units and any folded axis map."""
+    """Lines naming the writer, the method, the verdict, the calibrated units and any folded
+    axis map."""
     lines = [f"fieldcal {cal.version}, method {cal.method}, created {cal.created}"]
+    lines.append(verdict_line(cal))
     units = cal.units or {}
     lines.append(
         f"calibrated units: accelerometer {units.get('accel_calibrated', '?')}, "

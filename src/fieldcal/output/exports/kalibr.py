@@ -1,20 +1,17 @@
-"""The ``kalibr`` export: the ``imu.yaml`` of Kalibr and OpenVINS from a calibration.
+"""The ``kalibr`` and ``openvins`` exports: the ``imu.yaml`` of Kalibr and OpenVINS from a
+calibration, written by :func:`fieldcal.noise.imu_yaml`, the one writer ``fieldcal noise`` uses.
 
 Kalibr's IMU noise model (its wiki, "IMU Noise Model") takes continuous-time noise densities:
 a white noise of standard deviation ``σ`` per sample at ``update_rate`` Hz has the density
 ``σ · sqrt(1 / update_rate)``. fieldcal's ``noise_cov`` is the covariance of one raw sample;
 in calibrated units it is ``inv(gain) Σ inv(gain)ᵀ`` (times the unit factor squared), and each
-key gets the **largest** axis (the conservative choice, as ``fieldcal noise``; every axis is in
-a comment).
+key gets the **largest** axis (the conservative choice, as ``fieldcal noise``).
 
-What a calibration cannot give, this export does not invent:
-
-- the gyroscope: without ``cal.gyro`` there is no gyroscope density: refused;
-- the sample rate: read from ``cal.options["rate"]``; without it: refused;
-- the random walks (bias instability needs a long still recording, ``fieldcal noise``): the
-  two ``*_random_walk`` keys are written **commented out** and marked UNKNOWN, so Kalibr stops
-  on the missing key instead of running on a guess. ``fieldcal noise LOG --export kalibr``
-  measures all four figures.
+What a calibration cannot give, this export does not invent and does not write commented out:
+the random walks need a long still recording. Without them the export is refused in one line
+naming ``fieldcal noise``, which measures all four figures; so are a calibration without a
+gyroscope or without a sample rate. :func:`kalibr_noise` gives the densities a calibration
+does determine.
 """
 
 from __future__ import annotations
@@ -26,15 +23,28 @@ from numpy.typing import NDArray
 
 from ...calibration import Calibration
 from ...errors import InputError
+from ...noise import ImuNoise, imu_yaml
 from .autopilot import accel_factor
 from .common import comment_header, corrections
 
-__all__ = ["CONTENT", "FORMULA", "kalibr_noise", "write"]
+__all__ = [
+    "CONTENT",
+    "FORMULA",
+    "OPENVINS_CONTENT",
+    "imu_noise",
+    "kalibr_noise",
+    "write",
+    "write_openvins",
+]
 
 FORMULA = "noise_density = sigma_sample * sqrt(1 / update_rate)"
 CONTENT = (
-    "Kalibr/OpenVINS `imu.yaml`: `accelerometer_noise_density` (m/s²/√Hz), "
-    "`gyroscope_noise_density` (rad/s/√Hz), `update_rate`; the random walks marked UNKNOWN"
+    "Kalibr `imu.yaml`: the four noise figures, `rostopic`, `update_rate`; refused from a "
+    "calibration (no random walks): `fieldcal noise LOG --export kalibr` writes it"
+)
+OPENVINS_CONTENT = (
+    "OpenVINS `kalibr_imu_chain.yaml` (`%YAML:1.0`, the `imu0` block); refused from a "
+    "calibration (no random walks): `fieldcal noise` writes it"
 )
 
 _FIX = "fieldcal noise LOG --export kalibr measures the figures from a still recording"
@@ -78,8 +88,38 @@ def kalibr_noise(cal: Calibration) -> tuple[float, Array, Array]:
     return float(rate), accel * scale, gyro * scale
 
 
+def imu_noise(cal: Calibration) -> ImuNoise:
+    """The figures of an ``imu.yaml`` a calibration gives: the densities and the rate; the
+    random walks unknown (``None``, with why).
+
+    Raises
+    ------
+    InputError
+        See :func:`kalibr_noise`.
+    """
+    rate, accel, gyro = kalibr_noise(cal)
+
+    def axes(v: Array) -> str:
+        return ", ".join(f"{x:.6g}" for x in v)
+
+    unknown = "a calibration does not measure the bias random walks"
+    return ImuNoise(
+        rate=rate,
+        accel_density=float(accel.max()),
+        accel_walk=None,
+        gyro_density=float(gyro.max()),
+        gyro_walk=None,
+        notes={
+            "accelerometer_noise_density": f"[m/s^2/sqrt(Hz)] largest axis; x,y,z {axes(accel)}",
+            "gyroscope_noise_density": f"[rad/s/sqrt(Hz)] largest axis; x,y,z {axes(gyro)}",
+            "update_rate": "[Hz] the calibration's options.rate",
+        },
+        why={"accelerometer_random_walk": unknown, "gyroscope_random_walk": unknown},
+    )
+
+
 def write(cal: Calibration) -> str:
-    """Kalibr's ``imu.yaml``; the random walks commented out as UNKNOWN.
+    """Kalibr's ``imu.yaml`` (refused: a calibration has no random walks).
 
     Parameters
     ----------
@@ -92,26 +132,31 @@ def write(cal: Calibration) -> str:
     Raises
     ------
     InputError
-        See :func:`kalibr_noise`.
+        See :func:`kalibr_noise`; and the random walks, which no calibration gives, in one line
+        naming ``fieldcal noise``.
     """
-    rate, accel, gyro = kalibr_noise(cal)
+    return imu_yaml(imu_noise(cal), "kalibr", header=_header(cal))
 
-    def axes(v: Array) -> str:
-        return ", ".join(f"{x:.6g}" for x in v)
 
-    lines = comment_header(cal, "#")
-    lines += [
-        f"# Kalibr / OpenVINS imu.yaml: {FORMULA},",
-        "# sigma_sample from the calibration's per-sample noise covariance in calibrated units;",
-        "# each value is the LARGEST of the three axes (x, y, z in the comment).",
-        "rostopic: /imu0  # edit: your IMU topic",
-        f"update_rate: {rate!r}  # Hz, the calibration's options.rate",
-        f"accelerometer_noise_density: {float(accel.max())!r}"
-        f"  # m/s^2/sqrt(Hz); axes {axes(accel)}",
-        f"gyroscope_noise_density: {float(gyro.max())!r}  # rad/s/sqrt(Hz); axes {axes(gyro)}",
-        "# UNKNOWN: a calibration does not measure the random walks, so they are not written and",
-        "# Kalibr will stop on the missing keys. Fill them in: " + _FIX + ".",
-        "# accelerometer_random_walk: UNKNOWN  # m/s^3/sqrt(Hz)",
-        "# gyroscope_random_walk: UNKNOWN  # rad/s^2/sqrt(Hz)",
-    ]
-    return "\n".join(lines) + "\n"
+def write_openvins(cal: Calibration) -> str:
+    """OpenVINS' ``kalibr_imu_chain.yaml`` (refused as :func:`write`).
+
+    Parameters
+    ----------
+    cal : Calibration
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        As :func:`write`.
+    """
+    return imu_yaml(imu_noise(cal), "openvins", header=_header(cal))
+
+
+def _header(cal: Calibration) -> list[str]:
+    lines = [text[2:] for text in comment_header(cal, "#")]
+    return [*lines, f"{FORMULA}, sigma_sample from the calibration's per-sample noise covariance"]

@@ -14,14 +14,15 @@ import numpy as np
 
 from ...calibration import Calibration
 from ...errors import InputError
-from .common import corrections, provenance
-from .matlab import FORMULA
+from .common import TEMPERATURE_FORMULA, corrections, cubic, provenance, temperature_terms
+from .matlab import FORMULA, TEMPERATURE_USAGE
 
 __all__ = ["CONTENT", "FORMULA", "write", "write_bytes"]
 
 CONTENT = (
     "binary MATLAB v5 file: `A_accel`, `b_accel`, `A_mag`, `b_mag` (and `A_gyro`, `b_gyro`), "
-    "`formula`, `provenance`; as the `matlab` script"
+    "`formula`, `provenance`; as the `matlab` script (with temperature terms `T_<sensor>`, "
+    "`c_<sensor>`, `temperature_formula`)"
 )
 
 
@@ -44,6 +45,12 @@ def write_bytes(cal: Calibration) -> bytes:
     for name, M, b in corrections(cal):
         variables[f"A_{name}"] = np.ascontiguousarray(M.T)
         variables[f"b_{name}"] = b.reshape(1, 3)
+    terms = temperature_terms(cal)
+    for name, model in terms:
+        variables[f"T_{name}"] = np.array([[model.reference, *model.span]])
+        variables[f"c_{name}"] = cubic(model)
+    if terms:
+        variables["temperature_formula"] = f"{TEMPERATURE_FORMULA}; {TEMPERATURE_USAGE}"
     buffer = io.BytesIO()
     # SciPy loads here, not when the registry is imported: --version and --help stay light
     from scipy.io import savemat

@@ -15,15 +15,72 @@ PX4's corrections, as its source states them (PX4/PX4-Autopilot):
 ``CAL_MAG0_*OFF = bias`` and the scale matrix is ``c P_m⁻¹`` (the magnetometer-symmetric gauge);
 the accelerometer keeps its diagonal only (:func:`.autopilot.autopilot` computes what each
 drops, written in the file). ``_rotation`` is the board/sensor rotation, left to the user.
+
+Every name written is a PX4 parameter (src/modules/sensors/sensor_params_mag0.c and
+sensor_params_acc0.c define ``CAL_MAG0_XOFF`` … ``CAL_MAG0_ZODIAG`` and ``CAL_ACC0_XOFF`` …
+``CAL_ACC0_ZSCALE``, all floats). PX4's parameter definitions state no range for them and its
+driver library takes any finite value; its magnetometer calibration
+(``check_calibration_result``, src/modules/commander/mag_calibration.cpp) refuses a
+non-positive scale and flags offsets longer than ``MAG_MAX_OFFSET_LEN`` = 1.3 G ("the mag will
+saturate in some directions"). Those are the ranges checked here (:data:`RANGES`), plus a
+positive accelerometer scale (a zero or negative scale flips or kills the axis).
+
+Temperature terms (``docs/methods/temperature.md``), when the calibration has them, become PX4's
+thermal compensation parameters (src/modules/temperature_compensation/: the parameter names in
+``TemperatureCompensation.cpp``, ``initialize_parameter_handles``, and ``temp_comp_params_*``;
+the evaluation in ``TemperatureCompensation::calc_thermal_offsets_3D``, commit
+b8ad9bdbe5adcf6d6b8bbc78f0ab3f6ad895cc7a): per axis ``i``, ``offset = X0 + X1 d + X2 d² + X3 d³``
+with ``d = T − TREF`` and ``T`` clipped to ``[TMIN, TMAX]``, and the driver library subtracts it
+from the raw reading together with the ``CAL_*`` offset (``Accelerometer::Correct``:
+``data - _thermal_offset - _offset``; ``Magnetometer::SensorCorrectionsUpdate`` takes the
+magnetometer's from ``sensor_correction``). So ``TC_A0_X{k}_{i} = c_k[i]`` in raw units per K^k,
+``TREF = T_ref``, ``TMIN``/``TMAX`` the span seen (fieldcal clips the same way). ``X0`` is 0 for
+the accelerometer and the magnetometer, whose ``CAL_*0_*OFF`` hold the bias at ``TREF`` (as
+PX4's own accelerometer thermal calibration writes it, ``temperature_calibration/accel.cpp``:
+"normalise the correction to be zero at the reference temperature"); for the gyroscope, whose
+offset PX4's thermal calibration keeps in ``X0`` (``gyro.cpp``), ``TC_G0_X0 = bias`` and
+``CAL_GYRO0_*OFF`` must be 0. ``TC_*_ENABLE`` (int32) are set to 1. Without temperature terms
+the file is the same as before, byte for byte.
+
+The file is QGroundControl's parameter file: ``Vehicle-Id  Component-Id  Name  Value  Type``,
+tab-separated; QGroundControl refuses a file whose vehicle id is not the vehicle's, so the ids
+are options (``sysid``, ``compid``; 1 and 1 by default) and stated in the file.
 """
 
 from __future__ import annotations
 
 from ...calibration import Calibration
-from .autopilot import accel_error_text, autopilot, parameters
-from .common import comment_header, exact
+from ...errors import InputError
+from .autopilot import (
+    ParameterRange,
+    accel_error_text,
+    autopilot,
+    check_ranges,
+    parameter_lines,
+    parameters,
+)
+from .common import NAMES, TEMPERATURE_FORMULA, comment_header, cubic, exact, temperature_terms
 
-__all__ = ["CONTENT", "FORMULA", "write"]
+__all__ = [
+    "CONTENT",
+    "FORMULA",
+    "MAG_MAX_OFFSET",
+    "RANGES",
+    "TC_LETTER",
+    "thermal_parameters",
+    "write",
+]
+
+#: ``MAG_MAX_OFFSET_LEN`` (gauss) in PX4's mag_calibration.cpp.
+MAG_MAX_OFFSET = 1.3
+
+_CHECK = "mag_calibration.cpp check_calibration_result"
+#: The ranges PX4 accepts, with where its source states them.
+RANGES = (
+    ParameterRange("CAL_MAG0_{}OFF", -MAG_MAX_OFFSET, MAG_MAX_OFFSET, False, _CHECK),
+    ParameterRange("CAL_MAG0_{}SCALE", 0.0, None, True, _CHECK),
+    ParameterRange("CAL_ACC0_{}SCALE", 0.0, None, True, "a positive scale"),
+)
 
 FORMULA = (
     "mag_gauss = S * (raw - CAL_MAG0_OFF), S = [XSCALE XODIAG YODIAG; XODIAG YSCALE ZODIAG; "
@@ -31,20 +88,34 @@ FORMULA = (
 )
 CONTENT = (
     "`CAL_MAG0_{X,Y,Z}OFF`, `…SCALE`, `…ODIAG` (gauss), `CAL_ACC0_{X,Y,Z}OFF`, `…SCALE` "
-    "(m/s²), QGroundControl's tab-separated layout; what is dropped is stated"
+    "(m/s²), QGroundControl's tab-separated layout; what is dropped is stated; with temperature "
+    "terms PX4's `TC_A0_*`, `TC_M0_*`, `TC_G0_*` (`X0..X3` per axis, `TREF`, `TMIN`, `TMAX`) and "
+    "`TC_*_ENABLE`"
 )
 
 #: MAV_PARAM_TYPE_REAL32: every calibration parameter of PX4 is a float.
 _REAL32 = 9
+#: MAV_PARAM_TYPE_INT32: the ``TC_*_ENABLE`` switches.
+_INT32 = 6
+#: PX4's letter of each sensor in the thermal compensation's parameter names.
+TC_LETTER = {"accel": "A", "mag": "M", "gyro": "G"}
 
 
-def write(cal: Calibration) -> str:
-    """PX4 parameters in QGroundControl's file layout (vehicle 1, component 1).
+def write(
+    cal: Calibration, *, sysid: int = 1, compid: int = 1, allow_out_of_range: bool = False
+) -> str:
+    """PX4 parameters in QGroundControl's file layout.
 
     Parameters
     ----------
     cal : Calibration
         Both sensors; the magnetometer scaled to a field strength (``--field-strength``).
+    sysid, compid : int
+        The MAVLink system (vehicle) and component ids of every line, 1-255; QGroundControl
+        loads the file only onto the vehicle with that id.
+    allow_out_of_range : bool
+        Write values outside the range PX4 accepts (:data:`RANGES`), each marked by a comment
+        line above it; by default such a value is refused.
 
     Returns
     -------
@@ -53,9 +124,22 @@ def write(cal: Calibration) -> str:
     Raises
     ------
     InputError
-        A unit that cannot be converted, a missing sensor, mirrored magnetometer axes.
+        A unit that cannot be converted, a missing sensor, mirrored magnetometer axes, an id
+        outside 1-255, a value outside its range (without ``allow_out_of_range``).
     """
+    for option, value in (("sysid", sysid), ("compid", compid)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 255:
+            raise InputError(f"--{option} must be a MAVLink id from 1 to 255, got {value!r}")
     ap = autopilot(cal, "G")
+    names = (
+        "CAL_MAG0_{}OFF",
+        "CAL_MAG0_{}SCALE",
+        "CAL_MAG0_{}ODIAG",
+        "CAL_ACC0_{}OFF",
+        "CAL_ACC0_{}SCALE",
+    )
+    params = parameters(ap, ap.mag_bias, names)
+    outside = check_ranges(params, RANGES, "PX4", allow_out_of_range=allow_out_of_range)
     lines = comment_header(cal, "#")
     lines += [
         f"# PX4 convention: {FORMULA}",
@@ -69,16 +153,78 @@ def write(cal: Calibration) -> str:
         f"# (symmetric) frame: rotated by {ap.misalignment_deg:.4f} deg from the accelerometer's.",
         "# DROPPED: CAL_ACC0_*SCALE is per axis, so the cross-axis terms are lost:",
         f"# {accel_error_text(ap)}",
+        "# Checked against what PX4 accepts (mag_calibration.cpp: |CAL_MAG0_*OFF| <= "
+        f"{MAG_MAX_OFFSET:g} G, scales > 0): "
+        + (f"{len(outside)} OUTSIDE, written marked." if outside else "all inside."),
+        f"# Vehicle {sysid}, component {compid} (fieldcal export --sysid/--compid): QGroundControl",
+        "# loads these lines only onto the vehicle with that system id.",
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
-    names = (
-        "CAL_MAG0_{}OFF",
-        "CAL_MAG0_{}SCALE",
-        "CAL_MAG0_{}ODIAG",
-        "CAL_ACC0_{}OFF",
-        "CAL_ACC0_{}SCALE",
+    lines += parameter_lines(
+        params,
+        outside,
+        lambda name, value: f"{sysid}\t{compid}\t{name}\t{exact(value)}\t{_REAL32}",
     )
-    params = parameters(ap, ap.mag_bias, names)
-    lines += [f"1\t1\t{name}\t{exact(value)}\t{_REAL32}" for name, value in params]
+    lines += _thermal_lines(cal, sysid, compid)
     return "\n".join(lines) + "\n"
+
+
+def thermal_parameters(cal: Calibration) -> list[tuple[str, float]]:
+    """PX4's thermal compensation parameters of the sensors with temperature terms (see the
+    module docstring): ``TC_{A,M,G}0_X{k}_{axis}`` for k = 0..3, ``TREF``, ``TMIN``, ``TMAX``
+    per sensor; empty without temperature terms. The ``TC_*_ENABLE`` switches are not in the
+    list (:func:`write` adds them, as int32).
+
+    Parameters
+    ----------
+    cal : Calibration
+
+    Returns
+    -------
+    list of (str, float)
+    """
+    out: list[tuple[str, float]] = []
+    for name, model in temperature_terms(cal):
+        tag = f"TC_{TC_LETTER[name]}0"
+        x0 = cal.sensor(name).bias if name == "gyro" else [0.0, 0.0, 0.0]
+        rows = [x0, *cubic(model)]
+        out += [(f"{tag}_X{k}_{i}", float(rows[k][i])) for k in range(4) for i in range(3)]
+        low, high = (float(t) for t in model.span)
+        out += [(f"{tag}_TREF", model.reference), (f"{tag}_TMIN", low), (f"{tag}_TMAX", high)]
+    return out
+
+
+def _thermal_lines(cal: Calibration, sysid: int, compid: int) -> list[str]:
+    """The thermal compensation's comment and parameter lines (none without terms)."""
+    terms = temperature_terms(cal)
+    if not terms:
+        return []
+    names = ", ".join(NAMES[name] for name, _ in terms)
+    lines = [
+        "#",
+        f"# Temperature compensation ({names}), fieldcal's",
+        f"#   {TEMPERATURE_FORMULA};",
+        "# PX4 (TemperatureCompensation::calc_thermal_offsets_3D, then *::Correct):",
+        "#   thermal_offset = X0 + X1*d + X2*d^2 + X3*d^3, d = clip(T, TMIN, TMAX) - TREF,",
+        "#   subtracted from the raw reading with CAL_*_OFF. X1..X3 are fieldcal's c1..c3 (raw",
+        "# units per K^k), TREF its T_ref, TMIN/TMAX the temperatures seen (deg C, the die",
+        "# temperature the driver reports). X0 is 0 where CAL_*0_*OFF holds the bias at TREF.",
+    ]
+    if any(name == "gyro" for name, _ in terms):
+        lines += [
+            "# Gyroscope: TC_G0_X0 holds its bias at TREF (raw units, taken as rad/s): set",
+            "# CAL_GYRO0_XOFF/YOFF/ZOFF to 0. Its scale and misalignment are not PX4 parameters.",
+        ]
+    if any(name == "mag" for name, _ in terms):
+        lines.append(
+            "# TC_M_* needs PX4 1.15 or later (no magnetometer thermal compensation before)."
+        )
+    ids = ", ".join(f"TC_{TC_LETTER[name]}0_ID" for name, _ in terms)
+    lines.append(f"# Set {ids} to the sensors' device ids (as CAL_*_ID) before loading.")
+    lines += [f"{sysid}\t{compid}\tTC_{TC_LETTER[n]}_ENABLE\t1\t{_INT32}" for n, _ in terms]
+    lines += [
+        f"{sysid}\t{compid}\t{name}\t{exact(value)}\t{_REAL32}"
+        for name, value in thermal_parameters(cal)
+    ]
+    return lines

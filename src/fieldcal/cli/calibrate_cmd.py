@@ -1,0 +1,290 @@
+"""``fieldcal calibrate``, ``apply``, ``export`` and ``report``: a log to a calibration file,
+and a calibration file to a calibrated log, a firmware export or the pictures."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .. import _files
+from ..errors import InputError
+from ..output import exports
+from . import library
+from .group import (
+    check_matplotlib,
+    claim,
+    cli,
+    finish,
+    force_option,
+    open_console,
+    progress_line,
+    read_cal,
+    write_json,
+)
+from .options import (
+    POSES_OPTION,
+    check_reference,
+    detect_options,
+    fit_options,
+    load,
+    log_options,
+    run_calibration,
+    settings,
+)
+
+__all__ = ["apply", "calibrate", "export", "report"]
+
+#: The calibration file ``calibrate`` writes when neither ``-o`` nor ``--json`` is given.
+DEFAULT_OUTPUT = "cal.json"
+
+
+# ----------------------------------------------------------------------------- calibrate
+@cli.command()
+@click.argument("log", type=click.Path())
+@click.option(
+    "-o",
+    "--output",
+    help=f"Calibration JSON to write. [default: {DEFAULT_OUTPUT}; with --json, only when given]",
+)
+@fit_options
+@POSES_OPTION
+@log_options
+@detect_options
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the result as JSON instead of the summary (writes a file only with -o).",
+)
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and a fail verdict.")
+@force_option
+def calibrate(
+    log: str,
+    output: str | None,
+    as_json: bool,
+    quiet: bool,
+    force: bool,
+    **opts: Any,
+) -> None:
+    """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON.
+
+    The verdict (PASS, WARN or FAIL, with reasons) comes first. Exit code 3 when it is FAIL;
+    the JSON is written all the same.
+    """
+    if output is None and not as_json:
+        output = DEFAULT_OUTPUT
+    claim([output], {"log": log}, force)
+    # the options given as text are parsed before the slow part, into the settings objects
+    chosen = settings(opts, ["detect", "fit", "trust"])
+    check_reference(opts)
+    with progress_line(quiet) as progress:
+        if progress is not None:
+            progress(f"reading {log}")
+        data = load(log, opts, progress)
+        cal, _, doc, notes = run_calibration(data, chosen, progress)
+    if output is not None:
+        write_json(output, doc)
+    if as_json:
+        click.echo(json.dumps(doc, indent=2, allow_nan=False))
+    elif not quiet:
+        console = open_console()
+        library.print_summary(console, cal, doc, notes)
+        console.print(f"wrote {output}")
+    finish(cal, summary_shown=not (as_json or quiet))
+
+
+# ----------------------------------------------------------------------------- apply
+@cli.command()
+@click.argument("cal_json", type=click.Path())
+@click.argument("log", type=click.Path())
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    help="The log with calibrated columns, in the format of its suffix (.csv, .parquet, .npz).",
+)
+@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
+@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
+@click.option(
+    "--decimal", type=click.Choice([".", ","]), help="Decimal mark of a text log (default: seen)."
+)
+@click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one).")
+@click.option("--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic.")
+@click.option(
+    "--temp-col",
+    help="Temperature column (deg C) for a calibration with temperature terms (default: "
+    "recognised).",
+)
+@click.option(
+    "--temperature",
+    type=float,
+    help="One temperature (deg C) for every row, for a log without a temperature column.",
+)
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
+@force_option
+def apply(
+    cal_json: str,
+    log: str,
+    output: str,
+    accel_cols: str | None,
+    mag_cols: str | None,
+    decimal: str | None,
+    imu_topic: str | None,
+    mag_topic: str | None,
+    temp_col: str | None,
+    temperature: float | None,
+    quiet: bool,
+    force: bool,
+) -> None:
+    """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
+
+    The output's suffix names its format; CSV to CSV is streamed in chunks, every input
+    line kept byte for byte. A ROS bag gives its table (t, ax.., gx.., mx..) with the
+    calibrated columns. A calibration with temperature terms uses each row's temperature
+    (the log's temperature column, or --temperature).
+    """
+    claim([output], {"calibration": cal_json, "log": log}, force)
+    library.check_pyarrow(log, output)
+    cal = read_cal(cal_json)
+    with progress_line(quiet) as progress:
+        if progress is not None:
+            progress(f"applying the calibration to {log}")
+        used = library.apply_to_file(
+            cal,
+            log,
+            output,
+            accel_cols=accel_cols,
+            mag_cols=mag_cols,
+            decimal=decimal,
+            imu_topic=imu_topic,
+            mag_topic=mag_topic,
+            on_progress=progress,
+            temp_col=temp_col,
+            temperature=temperature,
+        )
+    if not quiet:
+        cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
+        open_console().print(f"calibrated {cols} -> {output}")
+
+
+# ----------------------------------------------------------------------------- export
+_SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values() if f.suffix)
+
+
+@cli.command()
+@click.argument("cal_json", type=click.Path())
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(list(exports.FORMATS)),
+    help=f"Target convention. [default: from -o's suffix ({_SUFFIXES}), else {exports.DEFAULT}]",
+)
+@click.option(
+    "-o",
+    "--output",
+    help="Write to this file instead of stdout (c-library: to this folder, made if missing).",
+)
+@click.option(
+    "--sysid",
+    type=click.IntRange(1, 255),
+    help="px4: the vehicle's MAVLink system id on every line (QGroundControl loads the file "
+    "only onto that vehicle). [default: 1]",
+)
+@click.option(
+    "--compid",
+    type=click.IntRange(1, 255),
+    help="px4: the MAVLink component id on every line. [default: 1]",
+)
+@click.option(
+    "--allow-out-of-range",
+    is_flag=True,
+    help="ardupilot, px4: write a value outside the range the autopilot accepts, marked by a "
+    "comment, instead of refusing the export.",
+)
+@force_option
+def export(
+    cal_json: str,
+    fmt: str | None,
+    output: str | None,
+    sysid: int | None,
+    compid: int | None,
+    allow_out_of_range: bool,
+    force: bool,
+) -> None:
+    """Write the calibration for firmware or another tool, its convention stated in the text."""
+    options: dict[str, object] = {
+        k: v for k, v in (("sysid", sysid), ("compid", compid)) if v is not None
+    }
+    if allow_out_of_range:
+        options["allow_out_of_range"] = True
+    if fmt is not None and exports.get(fmt).files is not None:  # a folder of files
+        if not output:
+            raise InputError(f"the {fmt} format is a folder of files: give -o DIR")
+        cal = read_cal(cal_json)
+        files = exports.export_files(cal, fmt, **options)
+        claim(
+            [Path(output) / name for name in files],
+            {"calibration": cal_json},
+            force,
+            folders_made=True,
+        )
+        Path(output).mkdir(parents=True, exist_ok=True)
+        for name, data in files.items():
+            _files.write_bytes(Path(output) / name, data)
+        return
+    claim([output], {"calibration": cal_json}, force)
+    if fmt is None:
+        by_suffix = exports.for_path(output) if output else None
+        fmt = by_suffix.name if by_suffix else exports.DEFAULT
+    cal = read_cal(cal_json)
+    if exports.get(fmt).binary is not None:  # a binary file (.mat) only goes to -o
+        data = exports.export_bytes(cal, fmt, **options)
+        if not output:
+            raise InputError(f"the {fmt} format is binary: give -o FILE{exports.get(fmt).suffix}")
+        _files.write_bytes(output, data)
+        return
+    text = exports.export(cal, fmt, **options)
+    if output:
+        _files.write_text(output, text if text.endswith("\n") else text + "\n")
+    else:
+        click.echo(text.rstrip("\n"))
+
+
+# ----------------------------------------------------------------------------- report
+@cli.command()
+@click.argument("cal_json", type=click.Path())
+@click.argument("log", type=click.Path())
+@click.option("-o", "--output", default="report.html", show_default=True, help="HTML report.")
+@click.option("--png", "png_dir", help="Also write each figure as PNG into this folder.")
+@log_options
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
+@force_option
+def report(
+    cal_json: str,
+    log: str,
+    output: str,
+    png_dir: str | None,
+    quiet: bool,
+    force: bool,
+    **cols: Any,
+) -> None:
+    """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
+    inputs = {"calibration": cal_json, "log": log}
+    claim([output], inputs, force)
+    if png_dir is not None:
+        pngs = [Path(png_dir) / f"{name}.png" for name in library.FIGURES]
+        claim(pngs, inputs, force, folders_made=True)
+    check_matplotlib()
+    cal = read_cal(cal_json)
+    with progress_line(quiet) as progress:
+        if progress is not None:
+            progress(f"reading {log}")
+        data = load(log, cols, progress)
+        if progress is not None:
+            progress("drawing the report")
+        library.write_report(cal, data, output, png_dir=png_dir, on_progress=progress)
+    if not quiet:
+        click.echo(f"wrote {output}" + (f" and PNGs in {png_dir}" if png_dir else ""))

@@ -1,0 +1,191 @@
+"""Levenberg-Marquardt on SO(3)^N × R^G with the pose blocks eliminated (Schur complement).
+
+Each pose's residuals depend on its own rotation (3 angles, 2 with one sensor) and on the G
+global parameters only, so the Gauss-Newton matrix is an arrow matrix::
+
+    [ U   W ]   U = blockdiag(U_i)  (N blocks of 3x3)
+    [ Wᵀ  V ]   V: G x G
+
+and the damped system is solved, as in bundle adjustment, through the reduced (Schur) system
+``S = V − Σ_i W_iᵀ U_i⁻¹ W_i`` of size G: O(N) work per iteration, all batched over poses.
+At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, see
+:mod:`.uncertainty`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import cast
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg.lapack import dgesv as _dgesv
+
+from .pose_model import Problem, State, apply_step, jacobians, residuals, rotation_basis
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class Normal:
+    """Blocks of the Gauss-Newton system ``JᵀJ`` and gradient ``Jᵀe`` at one point."""
+
+    U: Array  # (N, p, p)
+    W: Array  # (N, p, G)
+    V: Array  # (G, G)
+    gp: Array  # (N, p)
+    gg: Array  # (G,)
+    Jp: Array
+    Jg: Array
+    basis: Array | None
+
+
+def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
+    basis = rotation_basis(problem, state)
+    Jp, Jg = jacobians(problem, state, basis)
+    G = problem.n_global
+    JpT = Jp.transpose(0, 2, 1)
+    flat = Jg.reshape(-1, G)
+    return Normal(
+        U=JpT @ Jp,
+        W=JpT @ Jg,
+        V=flat.T @ flat,
+        gp=(JpT @ e[:, :, None])[:, :, 0],
+        gg=e.ravel() @ flat,
+        Jp=Jp,
+        Jg=Jg,
+        basis=basis,
+    )
+
+
+def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array, Array, Array]:
+    """Damped pose blocks' inverses, ``U⁻¹W``, the reduced matrix S (Schur complement) and the
+    damping added to the pose and global diagonals (Marquardt: proportional to the diagonal)."""
+    n, p, _ = ne.U.shape
+    dU = ne.U.reshape(n, p * p)[:, :: p + 1]
+    damp_p = lam * dU + 1e-12 * (1.0 + dU)
+    damped = ne.U.copy()
+    damped.reshape(n, p * p)[:, :: p + 1] += damp_p
+    Uinv = cast(Array, np.linalg.inv(damped))
+    Y = Uinv @ ne.W
+    G = ne.V.shape[0]
+    dV = ne.V.ravel()[:: G + 1]
+    damp_g = lam * dV + 1e-12 * (1.0 + dV)
+    S = ne.V - ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
+    S.ravel()[:: G + 1] += damp_g
+    return Uinv, Y, S, damp_p, damp_g
+
+
+def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
+    """The damped step and the decrease of J it predicts (linearised model)."""
+    Uinv, Y, S, damp_p, damp_g = reduce(ne, lam)
+    G = ne.V.shape[0]
+    z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
+    rhs = ne.W.reshape(-1, G).T @ z.ravel() - ne.gg
+    dg = _solve(S, rhs)
+    dp = Y @ dg
+    dp += z
+    dp = -dp
+    # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = −δᵀg + δᵀΛδ since (H + Λ)δ = −g
+    flat_dp, flat_gp = dp.ravel(), ne.gp.ravel()
+    pred = (
+        -(dg @ ne.gg + flat_dp @ flat_gp)
+        + (damp_g * dg) @ dg
+        + (damp_p.ravel() * flat_dp) @ flat_dp
+    )
+    return dg, dp, float(pred)
+
+
+def _solve(S: Array, rhs: Array) -> Array:
+    """``S⁻¹ rhs`` for the small symmetric reduced system: LAPACK's LU directly (numpy's
+    wrapper costs more than the 22x22 solve itself); a singular S raises as numpy does."""
+    _, _, x, info = _dgesv(S, rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return cast(Array, x)
+
+
+def _cost(e: Array) -> float:
+    """Eq. 8's J, ``Σ e²``."""
+    flat = e.ravel()
+    return float(flat @ flat)
+
+
+@dataclass
+class Result:
+    state: State
+    e: Array
+    cost: float
+    iterations: int
+    converged: bool
+
+
+def levenberg_marquardt(
+    problem: Problem,
+    state: State,
+    *,
+    max_iter: int = 100,
+    tol: float = 1e-10,
+    lam: float = 1e-4,
+    known_minimum: float | None = None,
+) -> Result:
+    """Minimise Eq. 8's J from ``state``.
+
+    Stops when an accepted step lowers J by less than ``tol·(1 + J)``, or by less than 1e-8 J
+    with the linear model predicting the decrease to 10 %: with Gauss-Newton's quadratic
+    convergence the next step would change J by far less than anything statistically
+    meaningful (J is a χ² variate of size ~dof).
+
+    ``known_minimum``: the J of a minimum already found from another start. Once the iterates
+    are in Gauss-Newton's quadratic regime and the linear model predicts that very value, this
+    start is heading for the same minimum and is abandoned (saves its last iterations).
+    """
+    e = residuals(problem, state)
+    cost = _cost(e)
+    nu = 2.0
+    converged = False
+    it = 0
+    ne = normal_equations(problem, state, e)
+    last_rho = 0.0
+    while it < max_iter:
+        it += 1
+        dg, dp, pred = solve_step(ne, lam)
+        if (
+            known_minimum is not None
+            and abs(last_rho - 1.0) < 0.1
+            and abs(cost - pred - known_minimum) <= 1e-6 * (1.0 + known_minimum)
+        ):
+            converged = True
+            break
+        # a NaN or inf in the step reaches the predicted decrease (its damping terms are sums
+        # of positive weights times squares), so one scalar test stands for both arrays
+        if not math.isfinite(pred) and not (np.isfinite(dg).all() and np.isfinite(dp).all()):
+            lam *= 10.0
+            continue
+        trial = apply_step(problem, state, dg, dp, ne.basis)
+        e_new = residuals(problem, trial)
+        cost_new = _cost(e_new)
+        gain = cost - cost_new
+        rho = gain / pred if pred > 0 else -1.0
+        if rho > 0 and np.isfinite(cost_new):
+            state, e, last_rho = trial, e_new, rho
+            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+            cost = cost_new
+            # In Gauss-Newton's quadratic regime (ρ ≈ 1) the next step would gain about
+            # (gain/J)² relative: stop now instead of paying for one more linearisation.
+            quadratic = abs(rho - 1.0) < 0.1 and gain <= 1e-8 * cost
+            if gain <= tol * (1.0 + cost) or quadratic or cost < 1e-300:
+                converged = True
+                break
+            ne = normal_equations(problem, state, e)
+        else:
+            if pred <= tol * 1e-3 * (1.0 + cost) and lam < 1e-3:
+                converged = True  # the model predicts nothing left to gain
+                break
+            lam *= nu
+            nu *= 2.0
+            if lam > 1e16:
+                break
+    return Result(state, e, cost, it, converged)

@@ -1,0 +1,337 @@
+"""The joint problem of Eq. 8 as a least-squares problem: parameters, residuals, Jacobians.
+
+Whitened residual of sensor ``s`` in pose ``i`` (Eq. 6, 8)::
+
+    e_s[i] = sqrt(Δ_s[i]) L_s⁻¹ (K_s R_i f_s + b_s − μ̂_s[i]),     Σ_s = L_s L_sᵀ
+
+so that Eq. 8's ``J = Σ ‖e‖²`` (twice the usual least-squares cost ``½‖e‖²``).
+
+Parameters. The 22 globals (joint problem) are, in order: the frame sensor's symmetric gain
+(6 entries, Sec. 4.3), its bias (3), the other sensor's full gain (9), its bias (3) and the dip
+(1, radians); the accelerometer comes first whichever sensor fixes the frame. Rotations are
+updated multiplicatively, ``R_i ← exp(ω_i^) R_i`` (a perturbation in the body frame), 3 angles
+per pose. With one sensor the rotation about its field is unobservable: each pose then has
+2 angles, a basis of the plane orthogonal to ``R_i f``.
+
+Temperature (``stats.temperature`` with orders, ``docs/methods/temperature.md``): the bias of
+sensor ``s`` in pose ``i`` is ``b_s + Σ_k c_sk (T_i − T_ref)^k``; the coefficients ``c_sk`` (3
+per order, k-major) are globals after the dip, so a problem without them is laid out, and
+computed, exactly as before.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..calibration import Calibration
+from ..geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
+from ..stats.pose_stats import PoseStats
+
+Array = NDArray[np.float64]
+
+SENSORS = ("accel", "mag")
+#: Entries (j, k) of a symmetric gain kept as parameters, row-major upper triangle.
+SYM_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _sym_map() -> Array:
+    """(9, 6) matrix taking the 6 symmetric parameters to the row-major 3x3 gain."""
+    T = np.zeros((9, 6))
+    for p, (j, k) in enumerate(SYM_ENTRIES):
+        T[3 * j + k, p] = T[3 * k + j, p] = 1.0
+    return T
+
+
+SYM_MAP = _sym_map()
+# Levi-Civita symbol: (K hat(v))[a, k] = -Σ K[a, j] ε[j, k, l] v[l]
+_EPS = np.zeros((3, 3, 3))
+for _a, _b, _c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _EPS[_a, _b, _c], _EPS[_a, _c, _b] = 1.0, -1.0
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Whitened data and the parameter layout of one calibration problem."""
+
+    sensors: tuple[str, ...]
+    frame: str
+    n: int
+    linv: dict[str, Array]  # (N, 3, 3): L_si⁻¹, whitening each pose mean
+    means: dict[str, Array]  # (N, 3): μ̂_s[i]
+    # The closed-form starts whiten with one matrix per sensor and weigh the poses:
+    # C_si ≈ C_s / w_si (exact, with w = Δ, when there is no pose-level noise).
+    start_chol: dict[str, Array]  # (3, 3)
+    start_weight: dict[str, Array]  # (N,)
+    start_mu: dict[str, Array]  # (N, 3): means whitened by start_chol
+    gain_slice: dict[str, slice]
+    bias_slice: dict[str, slice]
+    dip_index: int | None
+    n_global: int
+    #: (N, K): ``(T_i − T_ref)^k``, k = 1..K (the highest order of any sensor); None without
+    temp_powers: Array | None = None
+    #: each sensor with temperature terms: its coefficients' slice of the globals
+    temp_slice: dict[str, slice] = dataclass_field(default_factory=dict)
+    #: derived once per problem (e.g. the Cholesky factors back from ``linv``)
+    memo: dict[object, object] = dataclass_field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+
+    @property
+    def joint(self) -> bool:
+        return self.dip_index is not None
+
+    @property
+    def rot_dim(self) -> int:
+        return 3 if self.joint else 2
+
+    @property
+    def dof(self) -> int:
+        """Observations minus parameters: ``3N − 22`` joint, ``N − 9`` for one sensor."""
+        return 3 * len(self.sensors) * self.n - self.rot_dim * self.n - self.n_global
+
+    def symmetric(self, sensor: str) -> bool:
+        return sensor == self.frame
+
+    def temp_order(self, sensor: str) -> int:
+        """The order of ``sensor``'s bias polynomial in temperature (0: none)."""
+        sl = self.temp_slice.get(sensor)
+        return 0 if sl is None else (sl.stop - sl.start) // 3
+
+
+@dataclass
+class State:
+    """Current estimate: gains, biases, dip (radians) and world→body rotations."""
+
+    gains: dict[str, Array]
+    biases: dict[str, Array]
+    dip: float
+    rotations: Array
+    #: (K, 3) temperature coefficients per sensor with temperature terms (missing: zeros)
+    temps: dict[str, Array] = dataclass_field(default_factory=dict)
+
+    def copy(self) -> State:
+        return State(
+            {k: v.copy() for k, v in self.gains.items()},
+            {k: v.copy() for k, v in self.biases.items()},
+            float(self.dip),
+            self.rotations.copy(),
+            {k: v.copy() for k, v in self.temps.items()},
+        )
+
+    def temp(self, problem: Problem, sensor: str) -> Array:
+        """(K, 3) coefficients of ``sensor`` for ``problem``'s order, zero-padded or cut."""
+        order = problem.temp_order(sensor)
+        out = np.zeros((order, 3))
+        given = self.temps.get(sensor)
+        if given is not None and order:
+            k = min(order, len(given))
+            out[:k] = given[:k]
+        return out
+
+
+def build_problem(stats: PoseStats, frame: str) -> Problem:
+    """Whiten the pose means (Eq. 5) with their covariances (Eq. 7 plus pose-level noise) and
+    lay out the parameters. Built once per statistics and frame (kept in ``stats.memo``): the
+    fit and the evaluation of its result share it."""
+    key = ("mle.problem", frame)
+    cached = stats.memo.get(key)
+    if isinstance(cached, Problem):
+        return cached
+    problem = _build_problem(stats, frame)
+    stats.memo[key] = problem
+    return problem
+
+
+def _build_problem(stats: PoseStats, frame: str) -> Problem:
+    sensors = tuple(stats.sensors)
+    if frame not in sensors:
+        frame = sensors[0]
+    linv, means, start_chol, start_weight, start_mu, gs, bs = {}, {}, {}, {}, {}, {}, {}
+    # both sensors' factorisations in one call each (the same LAPACK routine per matrix)
+    st = [stats.sensor(s) for s in sensors]
+    covs = np.stack([x.mean_covariances() for x in st])
+    refs = np.stack([x.cov if x.cov is not None else np.eye(3) * x.pose_var for x in st])
+    mus = np.stack([np.asarray(x.means, dtype=float) for x in st])
+    all_linv = np.linalg.inv(np.linalg.cholesky(covs))
+    all_chol = np.linalg.cholesky(refs)
+    all_weight = 3.0 / np.einsum("sij,snji->sn", np.linalg.inv(refs), covs)
+    all_mu = np.linalg.solve(all_chol, mus.transpose(0, 2, 1)).transpose(0, 2, 1)
+    offset = 0
+    for k, s in enumerate(sensors):
+        linv[s], means[s], start_chol[s] = all_linv[k], mus[k], all_chol[k]
+        start_weight[s], start_mu[s] = all_weight[k], all_mu[k]
+        size = 6 if s == frame else 9
+        gs[s] = slice(offset, offset + size)
+        bs[s] = slice(offset + size, offset + size + 3)
+        offset += size + 3
+    dip_index = offset if len(sensors) == 2 else None
+    n_global = offset + (1 if dip_index is not None else 0)
+    powers, temp_slice = None, {}
+    temperature = stats.temperature
+    if temperature is not None and temperature.orders:
+        for s in sensors:
+            k = temperature.order(s)
+            if k:
+                temp_slice[s] = slice(n_global, n_global + 3 * k)
+                n_global += 3 * k
+        powers = temperature.powers(max(temperature.order(s) for s in sensors))
+    return Problem(
+        sensors,
+        frame,
+        stats.n_poses,
+        linv,
+        means,
+        start_chol,
+        start_weight,
+        start_mu,
+        gs,
+        bs,
+        dip_index,
+        n_global,
+        powers,
+        temp_slice,
+    )
+
+
+def field(problem: Problem, sensor: str, dip: float) -> Array:
+    """Reference field ``f_s`` in the world frame (Eq. 2 with unit magnitudes)."""
+    if sensor == "accel":
+        return GRAVITY
+    if problem.joint:
+        return magnetic_reference(dip)
+    return np.array([1.0, 0.0, 0.0])  # magnetometer alone: its field defines north
+
+
+def _whiten(linv: Array, x: Array) -> Array:
+    """``L_i⁻¹ x_i`` for a batch of vectors (N, 3)."""
+    return np.einsum("nij,nj->ni", linv, x)
+
+
+def bias_drift(problem: Problem, state: State, sensor: str) -> Array | None:
+    """(N, 3): ``Σ_k c_k (T_i − T_ref)^k`` of ``sensor`` in each pose, None without terms."""
+    order = problem.temp_order(sensor)
+    if not order or problem.temp_powers is None:
+        return None
+    return problem.temp_powers[:, :order] @ state.temp(problem, sensor)
+
+
+def residuals(problem: Problem, state: State) -> Array:
+    """Whitened residuals (N, 3·#sensors), accelerometer block first."""
+    out = []
+    for s in problem.sensors:
+        v = state.rotations @ field(problem, s, state.dip)
+        raw = v @ state.gains[s].T + state.biases[s] - problem.means[s]
+        drift = bias_drift(problem, state, s)
+        if drift is not None:
+            raw += drift
+        out.append(_whiten(problem.linv[s], raw))
+    return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
+
+
+def rotation_basis(problem: Problem, state: State) -> Array | None:
+    """(N, 3, 2) tangent basis orthogonal to ``R_i f`` for one-sensor problems, else None."""
+    if problem.joint:
+        return None
+    v = state.rotations @ field(problem, problem.sensors[0], state.dip)
+    helper = np.eye(3)[np.argmin(np.abs(v), axis=1)]
+    b1 = np.cross(v, helper)
+    b1 /= np.linalg.norm(b1, axis=1, keepdims=True)
+    b2 = np.cross(v, b1)
+    return np.stack([b1, b2], axis=-1)
+
+
+def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Array, Array]:
+    """Analytic Jacobians of :func:`residuals`: per-pose rotation block (N, m, 3 or 2) and
+    global block (N, m, G), with m = 3·#sensors rows per pose."""
+    n, G = problem.n, problem.n_global
+    m = 3 * len(problem.sensors)
+    Jp = np.empty((n, m, 3))
+    Jg = np.zeros((n, m, G))
+    for k, s in enumerate(problem.sensors):
+        rows = slice(3 * k, 3 * k + 3)
+        linv = problem.linv[s]
+        f = field(problem, s, state.dip)
+        v = state.rotations @ f
+        Kw = linv @ state.gains[s]  # (N, 3, 3)
+        # d(K exp(ω^) R f)/dω = −K hat(R f): written with ε to stay one matrix product
+        E = np.einsum("naj,jkl->nakl", Kw, _EPS).reshape(n, 9, 3)
+        Jp[:, rows, :] = (E @ v[:, :, None]).reshape(n, 3, 3)
+        # d(K v)/dK[j, k] = e_j v_k
+        JK = np.einsum("naj,nk->najk", linv, v).reshape(n, 3, 9)
+        if problem.symmetric(s):
+            JK = JK @ SYM_MAP
+        Jg[:, rows, problem.gain_slice[s]] = JK
+        Jg[:, rows, problem.bias_slice[s]] = linv
+        order = problem.temp_order(s)
+        if order and problem.temp_powers is not None:
+            # d(Σ_k c_k d_i^k)/dc_k[j] = d_i^k e_j: coefficient (k, j) at 3k + j of the slice
+            P = problem.temp_powers[:, :order]
+            Jg[:, rows, problem.temp_slice[s]] = np.einsum("naj,nk->nakj", linv, P).reshape(
+                n, 3, 3 * order
+            )
+        if s == "mag" and problem.joint:
+            dh = state.rotations @ magnetic_derivative(state.dip)
+            Jg[:, rows, problem.dip_index] = np.einsum("naj,nj->na", Kw, dh)
+    if basis is not None:
+        Jp = Jp @ basis
+    return Jp, Jg
+
+
+def exp_map(omega: Array) -> Array:
+    """Rodrigues' formula for a batch (N, 3), ``R = (1 − bθ²) I + a ω^ + b ωωᵀ``; the same as
+    :func:`fieldcal.rotations.exp_so3`, written entry-wise because it runs every LM step."""
+    th2 = np.einsum("ni,ni->n", omega, omega)
+    small = th2 < 1e-8
+    th = np.sqrt(np.where(small, 1.0, th2))
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
+    R = b[:, None, None] * omega[:, :, None] * omega[:, None, :]
+    d = 1.0 - b * th2
+    for k in range(3):
+        R[:, k, k] += d
+    x, y, z = (a[:, None] * omega).T
+    R[:, 0, 1] -= z
+    R[:, 1, 0] += z
+    R[:, 0, 2] += y
+    R[:, 2, 0] -= y
+    R[:, 1, 2] -= x
+    R[:, 2, 1] += x
+    return R
+
+
+def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None) -> State:
+    """Additive update of the globals, multiplicative ``exp(ω^) R_i`` update of the rotations."""
+    gains, biases, temps = {}, {}, {}
+    for s in problem.sensors:
+        d = dg[problem.gain_slice[s]]
+        dK = (SYM_MAP @ d).reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
+        gains[s] = state.gains[s] + dK
+        biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
+        if s in problem.temp_slice:
+            temps[s] = state.temp(problem, s) + dg[problem.temp_slice[s]].reshape(-1, 3)
+    dip = state.dip + (dg[problem.dip_index] if problem.dip_index is not None else 0.0)
+    omega = dp if basis is None else np.einsum("nij,nj->ni", basis, dp)
+    return State(gains, biases, float(dip), exp_map(omega) @ state.rotations, temps)
+
+
+def sensor_costs(problem: Problem, e: Array) -> dict[str, float]:
+    """Each sensor's part of Eq. 8's J."""
+    return {s: float(np.sum(e[:, 3 * k : 3 * k + 3] ** 2)) for k, s in enumerate(problem.sensors)}
+
+
+def state_from_calibration(problem: Problem, cal: Calibration) -> State:
+    """The optimiser's state for any calibration in fieldcal's gauge."""
+    gains = {s: np.array(cal.sensor(s).gain) for s in problem.sensors}
+    biases = {s: np.array(cal.sensor(s).bias) for s in problem.sensors}
+    gains[problem.frame] = 0.5 * (gains[problem.frame] + gains[problem.frame].T)
+    dip = np.radians(cal.dip_deg or 0.0) if problem.joint else 0.0
+    temps = {
+        s: np.array(model.coefficients)
+        for s in problem.temp_slice
+        if (model := cal.sensor(s).temperature) is not None
+    }
+    return State(gains, biases, float(dip), np.array(cal.rotations), temps)

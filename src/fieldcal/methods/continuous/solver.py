@@ -1,0 +1,284 @@
+"""Levenberg–Marquardt on the block-banded normal equations of the continuous model.
+
+Each epoch's rotation meets only its own readings and, through the gyroscope's factor, its two
+neighbours: the trajectory's block of ``JᵀWJ`` is block-tridiagonal (3×3 blocks, lower
+bandwidth 5), bordered by the dense block of the 34 parameters. A step solves
+
+    [H_tt  H_tp] [Δt]   [b_t]
+    [H_pt  H_pp] [Δp] = [b_p]
+
+by one banded Cholesky factorisation of ``H_tt`` (``scipy.linalg.cholesky_banded``), the Schur
+complement ``S = H_pp − H_pt H_tt⁻¹ H_tp`` (34×34) and back-substitution: time and memory
+linear in the samples. Temperature coefficients (:attr:`.model.State.temps`) widen the border:
+each sample's residual meets them through its own temperature, a dense column block like the
+other parameters.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import cholesky_banded
+from scipy.linalg.lapack import dtbtrs
+
+from .model import Data, State, accel_block, columns, mag_block
+from .preintegration import GyroFactors, thermal_factors
+
+__all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class Prior:
+    """Independent Gaussian priors on the parameters: means and inverse variances."""
+
+    mean: Array
+    precision: Array
+
+    def cost(self, p: Array) -> float:
+        """Half the prior's χ² (temperature coefficients past ``mean`` carry no prior)."""
+        return 0.5 * float(np.sum(self.precision * (p[: len(self.mean)] - self.mean) ** 2))
+
+
+@dataclass
+class Weights:
+    """Inverse variances per epoch: accelerometer and magnetometer (n,), gyroscope (n − 1,);
+    and the parameters' prior."""
+
+    accel: Array
+    mag: Array
+    gyro: Array
+    prior: Prior | None = None
+
+    def scaled(self, accel: float, mag: float, gyro: float) -> Weights:
+        return Weights(self.accel / accel, self.mag / mag, self.gyro / gyro, self.prior)
+
+
+@dataclass
+class Normal:
+    """``JᵀWJ`` and ``JᵀWr``: the trajectory's banded block in LAPACK's lower form (6, 3n), the
+    border ``H_tp`` (3n, 34), ``H_pp``, the right-hand sides and the cost ``½ Σ w r²``."""
+
+    banded: Array
+    border: Array
+    params: Array
+    rhs_t: Array
+    rhs_p: Array
+    cost: float
+    factor: Array | None = None
+
+
+#: Epochs per chunk of the assembly: the per-sample Jacobians of a chunk stay in the cache, so
+#: the cost per sample does not grow with the log.
+CHUNK = 4096
+
+
+def _chunks(n: int) -> list[tuple[int, int]]:
+    return [(lo, min(n, lo + CHUNK)) for lo in range(0, n, CHUNK)]
+
+
+def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
+    """Epochs ``lo..hi`` and the next one (the gyroscope's factors ``lo..hi−1`` need it)."""
+    stop = min(hi + 1, len(data.time))
+    sub = dataclasses.replace(state, rotations=state.rotations[lo:stop])
+    part = Data(
+        data.time[lo:stop],
+        data.accel[lo:stop],
+        data.mag[lo:stop],
+        data.gyro[lo:stop],
+        data.hold,
+        None if data.temperature is None else data.temperature[lo:stop],
+    )
+    return sub, part
+
+
+def cost(state: State, data: Data, w: Weights) -> float:
+    """``½ Σ w ‖r‖²`` over the three sensors (Eq. C1–C3)."""
+    total = 0.0
+    n = len(data.time)
+    for lo, hi in _chunks(n):
+        sub, part = _part(state, data, lo, hi)
+        m = hi - lo
+        sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
+        d = None if part.temperature is None else part.temperature[:m]
+        ra = accel_block(sub_m, part.accel[:m], d).residual
+        rm = mag_block(sub_m, part.mag[:m], d).residual
+        total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
+        total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
+        if len(sub.rotations) > 1:
+            rg = _factors(sub, part).residual
+            total += float(np.sum(w.gyro[lo : lo + len(rg)] * np.sum(rg**2, 1)))
+    prior = 0.0 if w.prior is None else w.prior.cost(state.vector())
+    return 0.5 * total + prior
+
+
+def normal_equations(state: State, data: Data, w: Weights) -> Normal:
+    """Assemble the normal equations, vectorised over the epochs of each chunk."""
+    n = len(state.rotations)
+    size = len(state.vector())
+    diag = np.zeros((n, 3, 3))
+    off = np.zeros((max(n - 1, 0), 3, 3))
+    border = np.zeros((n, 3, size))
+    params = np.zeros((size, size))
+    rhs_t = np.zeros((n, 3))
+    rhs_p = np.zeros(size)
+    total = 0.0
+    for lo, hi in _chunks(n):
+        sub, part = _part(state, data, lo, hi)
+        total += _assemble(sub, part, w, lo, hi, diag, off, border, params, rhs_t, rhs_p)
+    if w.prior is not None:
+        p = state.vector()
+        m = len(w.prior.mean)
+        params[np.diag_indices(m)] += w.prior.precision
+        rhs_p[:m] += w.prior.precision * (w.prior.mean - p[:m])
+        total += w.prior.cost(p)
+    banded = np.zeros((6, 3 * n))
+    for i in range(3):
+        for j in range(i + 1):
+            banded[i - j, j::3] = diag[:, i, j]
+        for j in range(3):
+            banded[3 + i - j, j : 3 * (n - 1) : 3] = off[:, i, j]
+    return Normal(banded, border.reshape(3 * n, size), params, rhs_t.ravel(), rhs_p, total)
+
+
+def _assemble(
+    sub: State,
+    part: Data,
+    w: Weights,
+    lo: int,
+    hi: int,
+    diag: Array,
+    off: Array,
+    border: Array,
+    params: Array,
+    rhs_t: Array,
+    rhs_p: Array,
+) -> float:
+    """Add epochs ``lo..hi`` (and the factors leaving them) to the normal equations."""
+    m = hi - lo
+    total = 0.0
+    own = dataclasses.replace(sub, rotations=sub.rotations[:m])
+    d = None if part.temperature is None else part.temperature[:m]
+    for block, weight, sl in (
+        (accel_block(own, part.accel[:m], d), w.accel[lo:hi], columns(sub, "accel")),
+        (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
+    ):
+        Jt, Jp, r = block.rotation, block.params, block.residual
+        WJtT = np.swapaxes(Jt * weight[:, None, None], 1, 2)
+        diag[lo:hi] += WJtT @ Jt
+        border[lo:hi, :, sl] += WJtT @ Jp
+        flat = Jp.reshape(-1, Jp.shape[2])
+        params[np.ix_(sl, sl)] += (flat * np.repeat(weight, 3)[:, None]).T @ flat
+        rhs_t[lo:hi] += (WJtT @ r[:, :, None])[:, :, 0]
+        rhs_p[sl] += flat.T @ (r * weight[:, None]).ravel()
+        total += 0.5 * float(np.sum(weight * np.sum(r**2, 1)))
+    if len(sub.rotations) < 2:
+        return total
+    f = _factors(sub, part)
+    k = len(f.dt)  # factors lo .. lo + k − 1, between epochs j and j + 1
+    wg = w.gyro[lo : lo + k]
+    sl = columns(sub, "gyro")
+    eye = wg[:, None, None] * np.eye(3)
+    diag[lo : lo + k] += eye  # J0ᵀ J0 = I (J0 is a rotation)
+    diag[lo + 1 : lo + k + 1] += eye
+    off[lo : lo + k] = f.previous * wg[:, None, None]  # block (j+1, j): J1ᵀ W J0, J1 = I
+    WJp = f.params * wg[:, None, None]
+    prevT = np.swapaxes(f.previous, 1, 2)
+    border[lo : lo + k, :, sl] += prevT @ WJp
+    border[lo + 1 : lo + k + 1, :, sl] += WJp
+    width = f.params.shape[2]
+    flat = f.params.reshape(-1, width)
+    params[np.ix_(sl, sl)] += WJp.reshape(-1, width).T @ flat
+    Wr = f.residual * wg[:, None]
+    rhs_t[lo : lo + k] += (prevT @ Wr[:, :, None])[:, :, 0]
+    rhs_t[lo + 1 : lo + k + 1] += Wr
+    rhs_p[sl] += flat.T @ Wr.ravel()
+    return total + 0.5 * float(np.sum(wg * np.sum(f.residual**2, 1)))
+
+
+def _factors(sub: State, part: Data) -> GyroFactors:
+    """The gyroscope's factors of a chunk, the bias following temperature if it has terms."""
+    return thermal_factors(
+        sub.rotations,
+        part.time,
+        part.gyro,
+        sub.gyro_gain,
+        sub.gyro_bias,
+        part.hold,
+        sub.temps.get("gyro"),
+        part.temperature,
+    )
+
+
+def schur(normal: Normal, damping: float = 0.0) -> tuple[Array, Array, Array, Array]:
+    """Factor ``H_tt = L Lᵀ`` (damped by ``1 + damping`` on its diagonal) and eliminate it.
+
+    One forward substitution with 35 right-hand sides, ``[W | z] = L⁻¹ [H_tp | b_t]``, gives
+    the Schur complement ``S = H_pp − WᵀW`` (34×34) and ``g = b_p − Wᵀz``; the trajectory's
+    step then needs one back-substitution (:func:`_step`). Returns ``(S, g, W, z)`` and keeps
+    the factor in ``normal`` for that.
+    """
+    size = normal.params.shape[0]
+    ab = normal.banded.copy()
+    ab[0] *= 1.0 + damping
+    ab[0] += 1e-12 * max(float(np.max(ab[0])), 1.0)
+    factor = cholesky_banded(ab, lower=True, check_finite=False)
+    rhs = np.empty((len(normal.rhs_t), size + 1), order="F")
+    rhs[:, :size] = normal.border
+    rhs[:, size] = normal.rhs_t
+    Z, info = dtbtrs(factor, rhs, uplo="L", overwrite_b=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"banded triangular solve failed (info {info})")
+    product = Z.T @ Z[:, :size]  # (35, 34): one pass over the samples
+    Hpp = normal.params.copy()
+    Hpp[np.diag_indices_from(Hpp)] *= 1.0 + damping
+    S = Hpp - product[:size]
+    normal.factor = factor
+    g = normal.rhs_p - product[size]
+    return 0.5 * (S + S.T), g, Z[:, :size], Z[:, size]
+
+
+def _step(normal: Normal, damping: float) -> tuple[Array, Array]:
+    S, g, W, z = schur(normal, damping)
+    dp = np.linalg.solve(S + 1e-14 * np.trace(S) * np.eye(len(S)), g)
+    x, info = dtbtrs(normal.factor, (z - W @ dp)[:, None], uplo="L", trans="T")
+    if info != 0:
+        raise np.linalg.LinAlgError(f"banded triangular solve failed (info {info})")
+    return dp, x[:, 0].reshape(-1, 3)
+
+
+def levenberg_marquardt(
+    state: State, data: Data, w: Weights, *, max_iter: int = 50, tol: float = 1e-3
+) -> tuple[State, int, bool]:
+    """Minimise ``½ Σ w ‖r‖²`` from ``state``; returns the state, iterations and whether a
+    step lowered the cost by less than ``tol`` (converged) before ``max_iter``.
+
+    ``tol`` is absolute, in units of the cost (half a χ²): a step that lowers it by ``tol``
+    moves the estimate by about ``sqrt(2 tol)`` standard errors (Mahalanobis), so the default
+    stops when the steps are a twentieth of the error bars or less."""
+    damping = 1e-8
+    normal = normal_equations(state, data, w)
+    for it in range(1, max_iter + 1):
+        try:
+            dp, dt = _step(normal, damping)
+        except np.linalg.LinAlgError:
+            damping *= 10.0
+            continue
+        trial = state.updated(dp, dt)
+        new = cost(trial, data, w)
+        if np.isfinite(new) and new <= normal.cost:
+            decrease = normal.cost - new
+            state = trial
+            normal = normal_equations(state, data, w)
+            damping = max(damping / 5.0, 1e-9)
+            if decrease <= tol:
+                return state, it, True
+        else:
+            damping *= 10.0
+            if damping > 1e8:
+                return state, it, True  # no further decrease is possible
+    return state, max_iter, False

@@ -1,0 +1,696 @@
+"""Every reading, detection, fitting and trust option, declared once.
+
+Each option is one field of one of four small frozen dataclasses, by the stage that uses it —
+:class:`ReadSettings` (the reader), :class:`DetectSettings` (cutting a log into poses),
+:class:`FitSettings` (the calibration) and :class:`TrustSettings` (the reference and the
+verdict) — with its default, and in the field's metadata an :class:`Option`: its flag on the
+command line (and column in a batch manifest), its unit, its valid values and its help text.
+:data:`OPTIONS` walks the four classes; from it come the command line's options
+(``fieldcal.cli.options``), the manifest's per-log columns (``fieldcal.batch.manifest``) and
+the split of the library's keyword arguments by stage (:func:`settings_of`,
+:meth:`fieldcal.pipeline.LogSettings.of`; the readers' :data:`READ_OPTIONS`). :func:`parse`
+turns an option's text (a command-line value, a manifest cell) into its value, or raises
+``ValueError`` with the one-line reason.
+
+Adding an option is one field here: a name (the library's keyword), a type and default, and
+``meta(flag, help, ...)`` with its unit and ``valid`` values (a :class:`Range`, choices, or a
+parser of its text). The command line picks it up for every command that takes its stage, the
+manifest as a column; the stage's code reads it from its settings object. An option of the
+library alone (``false_alarm``, ``body_frame``, ``trim``) has no flag: no command-line option,
+no manifest column.
+
+The settings objects hold the values as the user gave them; each stage checks its own once,
+with a one-line error (:func:`fieldcal.api.calibrate_with` the fit's and the trust's,
+:func:`fieldcal.pipeline.run_log` the detection's choices, the reader the columns), and no
+stage re-lists the defaults: the library's keyword defaults are these fields' defaults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal, TypeAlias, TypeVar
+
+from numpy.typing import ArrayLike
+
+from .geometry.frames import ACCEL_SIGNS
+from .limits import LARGEST, SMALLEST
+from .reference import DIP_ALLOWANCE_DEG
+
+__all__ = [
+    "BODY_FRAMES",
+    "DEFAULT_METHOD",
+    "MAGNITUDE",
+    "NON_NEGATIVE",
+    "OPTIONS",
+    "POSE_CHOICES",
+    "POSITIVE",
+    "READ_OPTIONS",
+    "STAGES",
+    "TARGET_OPTIONS",
+    "DateSpec",
+    "DetectSettings",
+    "FitSettings",
+    "LocationSpec",
+    "NoiseSpec",
+    "Option",
+    "PoseNoiseSpec",
+    "Range",
+    "ReadSettings",
+    "Stage",
+    "TrustSettings",
+    "changed",
+    "parse",
+    "parse_noise",
+    "parse_pose_noise",
+    "settings_of",
+]
+
+#: The calibration method when none is named (a name in :data:`fieldcal.methods.METHODS`).
+DEFAULT_METHOD = "mle"
+#: How a log without a pose column is calibrated: ``auto`` (still detection when the log has
+#: enough rests, else the continuous-motion estimator when it has a gyroscope and time), still
+#: detection, windows, one pose per sample (a slow log without a gyroscope;
+#: ``fieldcal.logs.pose_finding.POSE_SOURCES``), or continuous motion
+#: (``fieldcal.pipeline.POSE_MODES``, :mod:`fieldcal.methods.continuous`).
+POSE_CHOICES = ("auto", "still", "windows", "samples", "continuous")
+#: ``body_frame``: the sensor whose gain is made symmetric (Sec. 4.3).
+BODY_FRAMES = ("accel", "mag")
+
+Stage = Literal["read", "detect", "fit", "trust"]
+
+#: ``noise=``: a standard deviation (scalar or per axis) or a 3x3 covariance, for both sensors
+#: or per sensor (checked by :func:`fieldcal.stats.noise_models.noise_covariance`).
+NoiseSpec: TypeAlias = ArrayLike | Mapping[str, ArrayLike | None]
+#: ``pose_noise=``: "auto", "none" or a standard deviation, for both sensors or per sensor.
+PoseNoiseSpec: TypeAlias = str | float | Mapping[str, str | float]
+#: ``location=``: ``"LAT,LON[,ALT_M]"`` or ``(lat, lon[, alt_m])``.
+LocationSpec: TypeAlias = str | Sequence[float]
+#: ``date=``: ``"YYYY-MM-DD"`` or a date.
+DateSpec: TypeAlias = str | _dt.date
+
+
+@dataclass(frozen=True)
+class Range:
+    """A finite number from ``low`` (excluded when ``low_open``) to ``high``."""
+
+    low: float
+    high: float
+    low_open: bool = True
+
+    def check(self, text: object) -> float:
+        """``text`` (a string or a number) as a float in the range.
+
+        Raises
+        ------
+        ValueError
+            With the reason, e.g. ``'abc' is not a number``.
+        """
+        if isinstance(text, float):
+            number = text
+        else:
+            try:
+                number = float(str(text).strip())
+            except ValueError:
+                raise ValueError(f"{text!r} is not a number") from None
+        if not math.isfinite(number):
+            raise ValueError(f"{text!r} is not a finite number")
+        below = number <= self.low if self.low_open else number < self.low
+        if below or number > self.high:
+            low = "above" if self.low_open else "at least"
+            raise ValueError(
+                f"{text} is out of range; give a number {low} {self.low:g} and at most "
+                f"{self.high:g}"
+            )
+        return number
+
+
+#: Positive magnitudes (fields, thresholds, noise): their squares stay finite and normal.
+MAGNITUDE = Range(SMALLEST, LARGEST, low_open=False)
+#: Sample rates (Hz) and durations (seconds, or samples without a rate).
+POSITIVE = Range(0.0, 1e12)
+NON_NEGATIVE = Range(0.0, 1e12, low_open=False)
+#: Degrees of dip allowed for a local anomaly.
+_DIP_ALLOWANCE = Range(0.0, 89.0, low_open=False)
+#: A probability strictly between 0 and 1.
+_PROBABILITY = Range(0.0, 1.0 - 1e-12)
+
+#: What an option takes: ``text``, ``flag`` (on or off), ``switch`` (on, off or unset), a
+#: :class:`Range`, a tuple of choices (``None``: the choices of a registry the command line
+#: fills in), or a parser of its text.
+Valid = Literal["text", "flag", "switch"] | Range | tuple[str, ...] | None | Callable[[str], object]
+
+
+@dataclass(frozen=True)
+class Option:
+    """How an option is given and checked; the field's name is its library keyword.
+
+    Attributes
+    ----------
+    name : str
+        The library's keyword (filled in from the field).
+    stage : {"read", "detect", "fit", "trust"}
+        The stage that uses it (filled in from the class).
+    default : object
+        The library's default (filled in from the field).
+    flag : str
+        The command line's option (``--no-robust``); its column in a manifest drops the dashes
+        and writes ``_`` for ``-`` (``no_robust``). Empty for an option of the library alone.
+    help : str
+        The command line's help text.
+    unit : str
+        The unit of its value, ``""`` for none.
+    valid : Valid
+        What it takes (see :data:`Valid`).
+    inverted : bool
+        A flag that turns the field off (``--no-robust`` sets ``robust=False``).
+    metavar : str or None
+        The value's placeholder in the help.
+    show_default : bool
+        The command line shows the default.
+    target : str
+        The attribute of :class:`fieldcal.Targets` the option sets (``--target-tilt``:
+        ``tilt_deg``); its default (``None``) is that class's default.
+    """
+
+    flag: str
+    help: str
+    unit: str = ""
+    valid: Valid = "text"
+    inverted: bool = False
+    metavar: str | None = None
+    show_default: bool = False
+    target: str = ""
+    name: str = ""
+    stage: Stage = "fit"
+    default: object = None
+
+    @property
+    def column(self) -> str:
+        """The option's column in a batch manifest (empty for the library's own options)."""
+        return self.flag.split("/")[0].lstrip("-").replace("-", "_")
+
+    @property
+    def on_command_line(self) -> bool:
+        """Whether the command line (and a manifest) takes it."""
+        return bool(self.flag)
+
+
+def meta(flag: str, help: str, **how: Any) -> dict[str, Option]:
+    """A settings field's metadata: its :class:`Option` (see its attributes for ``how``)."""
+    return {"option": Option(flag, help, **how)}
+
+
+def library_only(help: str, **how: Any) -> dict[str, Option]:
+    """The metadata of an option of the library alone: no flag, no manifest column."""
+    return meta("", help, **how)
+
+
+def _per_sensor(text: str, one: Callable[[str], Any], example: str) -> Any:
+    if "=" not in text:
+        return one(text)
+    out: dict[str, Any] = {}
+    for part in text.split(","):
+        key, _, value = part.partition("=")
+        key = key.strip().lower()
+        if key not in ("accel", "mag"):
+            raise ValueError(f"{key!r} is not a sensor; name accel and/or mag, e.g. {example}")
+        out[key] = one(value.strip())
+    return out
+
+
+def parse_noise(text: str) -> float | dict[str, float]:
+    """``"0.01"`` for both sensors, or ``"accel=0.01,mag=0.2"`` per sensor.
+
+    Raises
+    ------
+    ValueError
+        With the reason.
+    """
+    parsed: float | dict[str, float] = _per_sensor(text, MAGNITUDE.check, "accel=0.01,mag=0.2")
+    return parsed
+
+
+def _pose_noise_one(text: str) -> str | float:
+    word = text.strip().lower()
+    if word in ("auto", "none"):
+        return word
+    return Range(0.0, LARGEST, low_open=False).check(word)
+
+
+def parse_pose_noise(text: str) -> str | float | dict[str, str | float]:
+    """``auto``, ``none``, a number, or ``accel=0.01,mag=auto`` (a sensor not named is
+    estimated).
+
+    Raises
+    ------
+    ValueError
+        With the reason.
+    """
+    parsed: str | float | dict[str, str | float] = _per_sensor(
+        text, _pose_noise_one, "accel=0.01,mag=auto"
+    )
+    return parsed
+
+
+def _field_strength(text: str) -> float | str:
+    if text.strip().lower() in ("wmm", "wmm:ut", "wmm:nt"):
+        return text.strip()
+    if text.strip()[:1].isalpha():
+        raise ValueError(
+            f"{text!r} is neither a number nor wmm (wmm:uT, wmm:nT: the World Magnetic "
+            "Model's intensity at --location)"
+        )
+    return MAGNITUDE.check(text)
+
+
+def _flag(text: str) -> bool:
+    word = text.strip().lower()
+    if word in ("1", "true", "yes", "y", "on"):
+        return True
+    if word in ("0", "false", "no", "n", "off"):
+        return False
+    raise ValueError("give true or false")
+
+
+# ----------------------------------------------------------------------------- the table
+@dataclass(frozen=True)
+class ReadSettings:
+    """How a log is read: its columns and its text (:func:`fieldcal.read_log`)."""
+
+    accel_cols: str | Sequence[str] | None = field(
+        default=None,
+        metadata=meta("--accel-cols", "Accelerometer columns x,y,z (default: recognised)."),
+    )
+    mag_cols: str | Sequence[str] | None = field(
+        default=None,
+        metadata=meta("--mag-cols", "Magnetometer columns x,y,z (default: recognised)."),
+    )
+    gyro_cols: str | Sequence[str] | None = field(
+        default=None,
+        metadata=meta("--gyro-cols", "Gyroscope columns x,y,z (helps still detection)."),
+    )
+    time_col: str | None = field(
+        default=None, metadata=meta("--time-col", "Time column (s; ms/us/ns recognised).")
+    )
+    pose_col: str | None = field(
+        default=None, metadata=meta("--pose-col", "Pose-label column: rows are grouped by it.")
+    )
+    temp_col: str | None = field(
+        default=None,
+        metadata=meta(
+            "--temp-col",
+            "Temperature column, °C (default: recognised: temp, temperature, t_degc ...).",
+        ),
+    )
+    drop_nan: bool = field(
+        default=False,
+        metadata=meta("--drop-nan", "Drop rows with NaN/inf instead of failing.", valid="flag"),
+    )
+    decimal: str | None = field(
+        default=None,
+        metadata=meta(
+            "--decimal",
+            "Decimal mark of a text log (default: '.', or ',' when the file shows it).",
+            valid=(".", ","),
+        ),
+    )
+    split_on_reset: bool = field(
+        default=False,
+        metadata=meta(
+            "--split-on-reset",
+            "Time going backwards starts a new segment instead of being an error.",
+            valid="flag",
+        ),
+    )
+    imu_topic: str | None = field(
+        default=None,
+        metadata=meta("--imu-topic", "ROS bag: the sensor_msgs/Imu topic (default: the one)."),
+    )
+    mag_topic: str | None = field(
+        default=None,
+        metadata=meta(
+            "--mag-topic", "ROS bag: the sensor_msgs/MagneticField topic (default: the one)."
+        ),
+    )
+    sensors: str | None = field(
+        default=None,
+        metadata=meta(
+            "--sensors",
+            "Which sensors to calibrate: accel or mag alone (the other's columns left out), "
+            "or both (default: those recognised; a sensor with an axis missing is an error).",
+            valid=("accel", "mag", "both"),
+        ),
+    )
+
+    def keywords(self) -> dict[str, Any]:
+        """The reader's keywords that are set (a value other than ``None`` or ``False``): the
+        reader's own defaults stand for the rest (:func:`fieldcal.logs.load_log`)."""
+        return {
+            f.name: value
+            for f in dataclasses.fields(self)
+            if (value := getattr(self, f.name)) is not None and value is not False
+        }
+
+
+@dataclass(frozen=True)
+class DetectSettings:
+    """How a log is cut into poses (:func:`fieldcal.logs.poses_from_log`)."""
+
+    poses: str = field(
+        default=POSE_CHOICES[0],
+        metadata=meta(
+            "--poses",
+            "Without a pose column: auto (rests when the log has enough, else continuous "
+            "motion when it has a gyroscope and time), detect still intervals, cut the log "
+            "into windows of --window seconds (turned slowly with no rests), samples, or "
+            "continuous (every sample, the gyroscope tying the orientations together).",
+            valid=POSE_CHOICES,
+            show_default=True,
+        ),
+    )
+    rate: float | None = field(
+        default=None,
+        metadata=meta(
+            "--rate", "Sample rate in Hz when there is no time column.", unit="Hz", valid=POSITIVE
+        ),
+    )
+    min_still: float | None = field(
+        default=None,
+        metadata=meta(
+            "--min-still",
+            "Shortest still interval: seconds (samples without time/rate). Default 1 s / 50.",
+            unit="s",
+            valid=POSITIVE,
+        ),
+    )
+    window: float | None = field(
+        default=None,
+        metadata=meta(
+            "--window",
+            "Moving-variance window: seconds (samples without time/rate). Default 0.5 s / 25.",
+            unit="s",
+            valid=POSITIVE,
+        ),
+    )
+    still_trim: float | None = field(
+        default=None,
+        metadata=meta(
+            "--trim", "Cut at each end of an interval (s or samples).", unit="s", valid=NON_NEGATIVE
+        ),
+    )
+    still_threshold: float | None = field(
+        default=None,
+        metadata=meta(
+            "--still-threshold",
+            "Accelerometer threshold, per-axis std in raw units (default: 3x noise floor).",
+            unit="raw",
+            valid=MAGNITUDE,
+        ),
+    )
+
+    def detector_keywords(self) -> dict[str, float | None]:
+        """The still detector's keywords (:func:`fieldcal.logs.poses_from_log`,
+        :class:`fieldcal.logs.live.LiveDetector`): ``rate``, ``window``, ``min_still``,
+        ``trim`` (``still_trim``) and ``threshold`` (``still_threshold``)."""
+        return {
+            "rate": self.rate,
+            "window": self.window,
+            "min_still": self.min_still,
+            "trim": self.still_trim,
+            "threshold": self.still_threshold,
+        }
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """How the calibration is fitted (:func:`fieldcal.calibrate`)."""
+
+    method: str = field(
+        default=DEFAULT_METHOD,
+        metadata=meta("--method", "Calibration method", valid=None, show_default=True),
+    )
+    gravity: float | None = field(
+        default=None,
+        metadata=meta(
+            "--gravity", "|g| for calibrated accel units (e.g. 9.80665).", valid=MAGNITUDE
+        ),
+    )
+    field_strength: float | str | None = field(
+        default=None,
+        metadata=meta(
+            "--field-strength",
+            "|h| for calibrated mag units (e.g. 48.5), or wmm: the World Magnetic Model's "
+            "intensity at --location in µT (wmm:nT for nT).",
+            valid=_field_strength,
+            metavar="NUMBER|WMM",
+        ),
+    )
+    noise: NoiseSpec | None = field(
+        default=None,
+        metadata=meta(
+            "--noise",
+            "Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
+            unit="raw",
+            valid=parse_noise,
+        ),
+    )
+    pose_noise: PoseNoiseSpec = field(
+        default="auto",
+        metadata=meta(
+            "--pose-noise",
+            "Pose-level noise std of each pose mean, raw units: auto (estimated), none "
+            "(zero, the seed paper's model), one value, or accel=0.01,mag=0.2.",
+            unit="raw",
+            valid=parse_pose_noise,
+            show_default=True,
+        ),
+    )
+    robust: bool = field(
+        default=True,
+        metadata=meta(
+            "--no-robust",
+            "Keep every pose and every sample: no rejection of disturbed poses, no "
+            "trimming of bumps inside a pose.",
+            valid="flag",
+            inverted=True,
+        ),
+    )
+    trim: bool | None = field(
+        default=None,
+        metadata=library_only(
+            "Cut samples that are not still inside each pose before Eq. 5/7 (default: as "
+            "robust; --no-robust turns both off)."
+        ),
+    )
+    body_frame: str = field(
+        default=BODY_FRAMES[0],
+        metadata=library_only(
+            "The sensor whose gain is made symmetric, fixing the common body frame (Sec. 4.3).",
+            valid=BODY_FRAMES,
+        ),
+    )
+    mag_axes: str | None = field(
+        default=None,
+        metadata=meta("--mag-axes", "Magnetometer axis map onto the accelerometer's, e.g. +y+x-z."),
+    )
+    accel_sign: str = field(
+        default=ACCEL_SIGNS[0],
+        metadata=meta(
+            "--accel-sign",
+            "What the accelerometer reports at rest: specific force (+1 g up) or gravity "
+            "(-1 g up, some loggers); the result corrects to specific force either way.",
+            valid=ACCEL_SIGNS,
+            show_default=True,
+        ),
+    )
+    gyro: bool | None = field(
+        default=None,
+        metadata=meta(
+            "--gyro/--no-gyro",
+            "Calibrate the gyroscope from the motion between the poses: by default when "
+            "the log has one and it can be (a note says why not); --gyro makes that an error.",
+            valid="switch",
+        ),
+    )
+    mag_mirrored: bool = field(
+        default=False,
+        metadata=meta(
+            "--mag-mirrored",
+            "The magnetometer's axes (after --mag-axes) are left-handed relative to the "
+            "accelerometer's; static data cannot tell this from the dip's sign.",
+            valid="flag",
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class TrustSettings:
+    """What the result is checked against (:mod:`fieldcal.trust`, the World Magnetic Model)."""
+
+    location: LocationSpec | None = field(
+        default=None,
+        metadata=meta(
+            "--location",
+            "Where the log was recorded (decimal degrees, metres above the WGS 84 "
+            "ellipsoid): the World Magnetic Model's dip, intensity and declination there are "
+            "the reference; its dip decides the magnetometer's handedness and is checked.",
+            metavar="LAT,LON[,ALT_M]",
+        ),
+    )
+    date: DateSpec | None = field(
+        default=None,
+        metadata=meta(
+            "--date",
+            "When the log was recorded, for --location (default: today).",
+            metavar="YYYY-MM-DD",
+        ),
+    )
+    dip_allowance_deg: float = field(
+        default=DIP_ALLOWANCE_DEG,
+        metadata=meta(
+            "--dip-allowance",
+            "Degrees of dip allowed for a local anomaly beyond the uncertainties before "
+            f"the verdict warns (default {DIP_ALLOWANCE_DEG:g}).",
+            unit="deg",
+            valid=_DIP_ALLOWANCE,
+        ),
+    )
+    false_alarm: float = field(
+        default=0.01,
+        metadata=library_only(
+            "Family-wise false-alarm rate of the pose tests per calibration.", valid=_PROBABILITY
+        ),
+    )
+    target_tilt: float | None = field(
+        default=None,
+        metadata=meta(
+            "--target-tilt",
+            "Predicted tilt error (1σ, degrees) to reach: the verdict warns beyond it, fails "
+            "beyond 5 times it; capture and plan aim at it.",
+            unit="deg",
+            valid=POSITIVE,
+            target="tilt_deg",
+        ),
+    )
+    target_heading: float | None = field(
+        default=None,
+        metadata=meta(
+            "--target-heading",
+            "Predicted heading error (1σ, degrees) to reach: the verdict warns beyond it, "
+            "fails beyond 5 times it; capture and plan aim at it.",
+            unit="deg",
+            valid=POSITIVE,
+            target="heading_deg",
+        ),
+    )
+    target_norm: float | None = field(
+        default=None,
+        metadata=meta(
+            "--target-norm",
+            "Predicted error of |a| and |m| (1σ, percent) to reach: the verdict warns beyond "
+            "it, fails beyond 5 times it.",
+            unit="%",
+            valid=POSITIVE,
+            target="norm_pct",
+        ),
+    )
+
+
+#: The settings class of each stage, in the order a log goes through them.
+STAGES: Mapping[Stage, type[Any]] = {
+    "read": ReadSettings,
+    "detect": DetectSettings,
+    "fit": FitSettings,
+    "trust": TrustSettings,
+}
+
+
+def _table() -> dict[str, Option]:
+    table: dict[str, Option] = {}
+    for stage, cls in STAGES.items():
+        for f in dataclasses.fields(cls):
+            option: Option = f.metadata["option"]
+            table[f.name] = dataclasses.replace(option, name=f.name, stage=stage, default=f.default)
+    return table
+
+
+#: Every option by its library keyword, in the order of the stages.
+OPTIONS: Mapping[str, Option] = _table()
+#: The keywords that go to the reader (:func:`fieldcal.logs.load_log`).
+READ_OPTIONS: tuple[str, ...] = tuple(n for n, o in OPTIONS.items() if o.stage == "read")
+#: The options that set an attribute of :class:`fieldcal.Targets` (``--target-tilt`` ...).
+TARGET_OPTIONS: tuple[str, ...] = tuple(n for n, o in OPTIONS.items() if o.target)
+
+_Settings = TypeVar("_Settings", ReadSettings, DetectSettings, FitSettings, TrustSettings)
+
+
+def changed(settings: object) -> dict[str, object]:
+    """The fields of a settings object given values other than their defaults.
+
+    Parameters
+    ----------
+    settings : ReadSettings, DetectSettings, FitSettings or TrustSettings
+
+    Returns
+    -------
+    dict
+        By library keyword.
+    """
+    out: dict[str, object] = {}
+    for f in dataclasses.fields(settings):  # type: ignore[arg-type]  # a settings dataclass
+        value = getattr(settings, f.name)
+        plain = isinstance(value, (str, bool, int, float, type(None)))
+        if value is not f.default and not (plain and value == f.default):
+            out[f.name] = value
+    return out
+
+
+def settings_of(cls: type[_Settings], keywords: Mapping[str, object]) -> _Settings:
+    """The settings object of ``cls`` (one of the four) from the library's keywords: those that
+    are its fields, the others left (a keyword not given takes the field's default).
+
+    Parameters
+    ----------
+    cls : type
+        :class:`ReadSettings`, :class:`DetectSettings`, :class:`FitSettings` or
+        :class:`TrustSettings`.
+    keywords : mapping
+        Keyword arguments of :func:`fieldcal.calibrate_log` (any stage's, a method's own).
+
+    Returns
+    -------
+    settings : cls
+        The values as given: the stage that reads them checks them.
+    """
+    names = {f.name for f in dataclasses.fields(cls)}
+    given: dict[str, Any] = {k: v for k, v in keywords.items() if k in names}
+    return cls(**given)
+
+
+def parse(option: Option, text: str) -> object:
+    """An option's value from its text (a command-line value, a manifest cell).
+
+    Raises
+    ------
+    ValueError
+        With the one-line reason (the caller names the option or the cell).
+    """
+    valid = option.valid
+    if isinstance(valid, str):  # text, flag or switch
+        if valid == "text":
+            return text
+        value = _flag(text)
+        return not value if option.inverted else value
+    if isinstance(valid, Range):
+        return valid.check(text)
+    if isinstance(valid, tuple):
+        if text not in valid:
+            raise ValueError(f"give one of {', '.join(valid)}")
+        return text
+    if valid is None:  # a registry's name: the registry checks it
+        return text
+    return valid(text)

@@ -1,0 +1,97 @@
+"""The shared trust path for a calibration from continuous motion: handedness, accuracy, verdict.
+
+:func:`fieldcal.methods.continuous.fit_continuous` gives the parameters, their covariance (the
+trajectory marginalised, widened for correlated residuals) and its own motion- and
+stretch-level findings (undetermined by the motion, a fit that did not settle, stretches
+down-weighted for the body's acceleration). What the pose path adds after a fit
+(:func:`fieldcal.trust.fitting.fit_trusted`) is added here the same way, by the same code:
+
+- the magnetometer's handedness, decided once by :func:`~fieldcal.trust.handedness.decide`
+  (the World Magnetic Model's dip when there is a reference and it can decide, otherwise
+  what the user stated with ``mag_mirrored``): readings cannot tell the twin apart, and neither
+  can the gyroscope (``docs/methods/continuous.md``, gauge);
+- the predicted accuracy in the user's terms (:func:`~fieldcal.trust.accuracy.predict_accuracy`);
+- the verdict from :data:`fieldcal.trust.verdict.CHECKS` (:func:`~fieldcal.trust.verdict.judge`
+  with no pose statistics: the rules on convergence, accuracy against the targets, plausible
+  gains, coverage — of the trajectory's gravity directions —, the dip and the reference
+  apply; the pose-level ones do not), with the estimator's own reasons kept in place of them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+from ..calibration import Calibration
+from ..reference import FieldReference
+from .accuracy import predict_accuracy
+from .handedness import decide
+from .targets import Targets
+from .verdict import ReferenceCheck, judge
+
+__all__ = ["METHOD_OWN", "trust_continuous"]
+
+#: The estimator's reasons the shared rules replace (the generic ``not_converged`` says it).
+METHOD_OWN = ("continuous_not_converged",)
+
+
+def trust_continuous(
+    cal: Calibration,
+    *,
+    mag_mirrored: bool = False,
+    reference: FieldReference | None = None,
+    dip_allowance_deg: float = 0.0,
+    targets: Targets | None = None,
+    magnitudes: Mapping[str, float | None] | None = None,
+) -> Calibration:
+    """Attach handedness, accuracy and verdict to a calibration from continuous motion.
+
+    Parameters
+    ----------
+    cal : Calibration
+        From :func:`~fieldcal.methods.continuous.fit_continuous`, its gains already in raw
+        units per unit of the magnitudes given (:meth:`Calibration.with_field_magnitudes`).
+    mag_mirrored : bool
+        The handedness stated (``--mag-mirrored``); a reference that can decide overrides it.
+    reference : FieldReference, optional
+        The World Magnetic Model's field where the log was recorded (``--location``,
+        ``--date``): decides the handedness and is compared with the fitted dip.
+    dip_allowance_deg : float
+        Degrees of dip allowed for local anomalies in that comparison.
+    targets : Targets, optional
+        The accuracy targets of the verdict (default :class:`~fieldcal.trust.targets.Targets`).
+    magnitudes : mapping, optional
+        ``{"accel": gravity, "mag": field_strength}`` as given (``None``: not given), for the
+        plausible-gain rules.
+
+    Returns
+    -------
+    Calibration
+        With ``accuracy``, ``verdict``, ``field_reference`` and the options ``mag_mirrored``,
+        ``mag_handedness`` (``"stated"`` or ``"reference"``).
+    """
+    hand = decide(cal, bool(mag_mirrored), reference, dip_allowance_deg)
+    check = None
+    if reference is not None:
+        check = ReferenceCheck(reference, dip_allowance_deg, bool(mag_mirrored), hand.decided)
+    result = cal.with_mag_handedness(hand.mirrored)
+    accuracy = predict_accuracy(result)
+    given = {s: (1.0, m) for s, m in (magnitudes or {}).items() if m}  # gains in those units
+    own = cal.verdict.reasons if cal.verdict is not None else ()
+    verdict = judge(
+        result,
+        None,
+        None,
+        accuracy,
+        check,
+        targets=targets,
+        magnitudes=given,
+        given=[r for r in own if r.code not in METHOD_OWN],
+    )
+    return dataclasses.replace(
+        result,
+        accuracy=accuracy,
+        verdict=verdict,
+        field_reference=reference,
+        options={**result.options, **hand.options},
+    )
