@@ -775,38 +775,28 @@ def _sample_poses(log: Log, hz: float | None, window: float | None) -> PoseSet:
     starts, stops = _window_edges(log, w)
     if len(starts) == 0:
         raise InputError(f"{log.path}: the log has no samples")
-    spans = list(zip(starts.tolist(), stops.tolist(), strict=True))
-    first, last = log.index[starts], log.index[stops - 1] + 1
-    std: list[float | None] = [None] * len(spans)
+    std: list[float | None] = [None] * len(starts)
     if w > 1:
         ref = log.accel if log.accel is not None else log.mag
         assert ref is not None
         scale = scale_of(ref)
         _, var, count = _run_stats(ref / scale, starts, stops)
         std = _rms_std(var, count, scale)
-    entries: list[PoseEntry] = [
-        {"start": a, "stop": b, "samples": c, "std": d}
-        for a, b, c, d in zip(
-            first.tolist(), last.tolist(), (stops - starts).tolist(), std, strict=True
-        )
-    ]
-    found = PoseSet(
-        accel=None if log.accel is None else [log.accel[a:b] for a, b in spans],
-        mag=None if log.mag is None else [log.mag[a:b] for a, b in spans],
-        entries=entries,
-        detection=None,
-        rate=hz,
-        source="samples",
-    )
+    found = _span_poses(log, hz, starts, stops, std, "samples")
     _orient(found, [found.means(s) for s in ("accel", "mag") if getattr(found, s) is not None])
     return found
 
 
-def _cut(
-    log: Log, hz: float | None, motion: _Motion, starts: Rows, stops: Rows, source: str
+def _span_poses(
+    log: Log,
+    hz: float | None,
+    starts: Rows,
+    stops: Rows,
+    std: Sequence[float | None],
+    source: str,
+    windows: WindowCut | None = None,
 ) -> PoseSet:
-    """The poses of windows measured by :func:`_measure`."""
-    std = _rms_std(motion.var / motion.scale**2, motion.counts, motion.scale)
+    """The poses of consecutive spans ``[starts, stops)`` of the log's rows (unlabelled)."""
     first, last = log.index[starts], log.index[stops - 1] + 1
     entries: list[PoseEntry] = [
         {"start": a, "stop": b, "samples": c, "std": s}
@@ -815,15 +805,23 @@ def _cut(
         )
     ]
     spans = list(zip(starts.tolist(), stops.tolist(), strict=True))
-    found = PoseSet(
+    return PoseSet(
         accel=None if log.accel is None else [log.accel[a:b] for a, b in spans],
         mag=None if log.mag is None else [log.mag[a:b] for a, b in spans],
         entries=entries,
         detection=None,
         rate=hz,
         source=source,
-        windows=motion.cut,
+        windows=windows,
     )
+
+
+def _cut(
+    log: Log, hz: float | None, motion: _Motion, starts: Rows, stops: Rows, source: str
+) -> PoseSet:
+    """The poses of windows measured by :func:`_measure`."""
+    std = _rms_std(motion.var / motion.scale**2, motion.counts, motion.scale)
+    found = _span_poses(log, hz, starts, stops, std, source, motion.cut)
     means = [motion.means]
     if log.accel is not None and log.mag is not None:  # the motion was measured on the accel
         scale = scale_of(log.mag)
