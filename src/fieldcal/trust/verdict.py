@@ -418,10 +418,13 @@ def _untested(case: Case) -> Iterator[Fired]:
     )
 
 
-def _shape(gain: Array) -> tuple[float, Array]:
+def _shape(gain: Array) -> tuple[float, Array] | None:
     """The gain's scale (geometric mean of its singular values) and its symmetric factor
-    (``K = U P``, ``P = V Σ Vᵀ``) divided by that scale: the axis scales and cross terms."""
+    (``K = U P``, ``P = V Σ Vᵀ``) divided by that scale: the axis scales and cross terms;
+    ``None`` for a gain of rank below 3 (numpy's ``matrix_rank`` tolerance)."""
     _, sigma, Vt = np.linalg.svd(gain)
+    if not sigma[-1] > sigma[0] * 3 * np.finfo(float).eps:
+        return None
     scale = float(np.exp(np.mean(np.log(sigma))))
     return scale, np.asarray((Vt.T * (sigma / scale)) @ Vt)
 
@@ -429,9 +432,10 @@ def _shape(gain: Array) -> tuple[float, Array]:
 def _gains(case: Case) -> Iterator[Fired]:
     for s in case.sensors:
         gain = case.cal.sensor(s).gain
-        if not np.all(np.isfinite(gain)) or np.linalg.matrix_rank(gain) != 3:
+        shaped = _shape(gain) if np.all(np.isfinite(gain)) else None
+        if shaped is None:
             continue
-        scale, shape = _shape(gain)
+        scale, shape = shaped
         numbers: dict[str, object] = {"sensor": SENSOR_NAME[s], "option": MAGNITUDE_OPTION[s]}
         given = case.magnitudes.get(s)
         real = None if given is None else scale * given[0]
