@@ -26,14 +26,14 @@ from ..output import exports as export_formats
 from ..pipeline import LogSettings
 from ..settings import OPTIONS
 from .executors import default_jobs, run_dask, run_processes, run_sequential
-from .job import CAL_FILE, ROW_FILE, JobResult, Task, export_name, read_row
+from .job import CAL_FILE, GROUP, ROW_FILE, JobResult, Task, export_name, read_row
 from .manifest import LogSpec, check_devices, expand_logs
 from .table import COLUMNS, failed, to_arrow, to_pandas, write_summary
 
 __all__ = ["COLUMNS", "BatchResult", "LogSpec", "calibrate_many", "export_name"]
 
 #: Keywords of :func:`calibrate_many` that are not calibration options.
-_OWN = ("on_progress", "log", "accel", "mag", "self")
+_OWN = ("on_progress", "log", "accel", "mag", "self", "group")
 
 
 @dataclass(frozen=True)
@@ -149,6 +149,7 @@ def calibrate_many(
     created: str | None = None,
     keep_calibrations: bool = True,
     on_result: Callable[[Mapping[str, Any]], None] | None = None,
+    group: int = GROUP,
     **options: object,
 ) -> BatchResult:
     """Calibrate many logs, each on its own, with the same options: ``fieldcal batch``.
@@ -182,7 +183,12 @@ def calibrate_many(
     keep_calibrations : bool
         Return the calibrations (memory: about 20 kB each) or only the rows.
     on_result : callable, optional
-        Called with each row as its log finishes (resumed rows first), for progress.
+        Called with each row as its log finishes (resumed rows first), for progress; the
+        logs calibrated together finish together.
+    group : int
+        Logs each worker calibrates together, at most: their Levenberg-Marquardt runs are
+        stepped at once (:mod:`fieldcal.likelihood.fleet`), with the same results as one at a
+        time; 1 calibrates one log after another.
     **options
         What :func:`fieldcal.calibrate_log` takes (columns, still detection, ``method``,
         ``gravity``, ``pose_noise``, ...); a manifest's per-log values override them.
@@ -210,6 +216,8 @@ def calibrate_many(
     check_devices(specs)
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InputError(f"jobs must be a whole number of processes, at least 1; got {jobs!r}")
+    if isinstance(group, bool) or not isinstance(group, int) or group < 1:
+        raise InputError(f"group must be a whole number of logs, at least 1; got {group!r}")
     folder = None if out is None else Path(os.path.abspath(out))
     if folder is None and resume:
         raise InputError("resume needs the folder of the earlier batch; give out=FOLDER")
@@ -247,11 +255,11 @@ def calibrate_many(
         )
     results: Iterator[JobResult]
     if scheduler is not None:
-        results = run_dask(tasks, scheduler)
+        results = run_dask(tasks, scheduler, group)
     elif (jobs or default_jobs()) == 1 or len(tasks) <= 1:
-        results = run_sequential(tasks)
+        results = run_sequential(tasks, group)
     else:
-        results = run_processes(tasks, min(jobs or default_jobs(), len(tasks)))
+        results = run_processes(tasks, min(jobs or default_jobs(), len(tasks)), group)
     files: list[Path] = []
     try:
         for result in results:

@@ -1,20 +1,23 @@
 """Where a batch's logs are calibrated: here, in local processes, or on a Dask cluster.
 
-Each executor runs :func:`fieldcal.batch.job.run_task` on every task and yields the
-:class:`~fieldcal.batch.job.JobResult` as each finishes (completion order; the batch puts the
-rows back in the order of the logs).
+Each executor runs :func:`fieldcal.batch.job.run_tasks` on chunks of the tasks (up to
+``group`` logs, calibrated together in one worker with their Levenberg-Marquardt runs stepped
+at once: :mod:`fieldcal.likelihood.fleet`) and yields the
+:class:`~fieldcal.batch.job.JobResult` of each log as its chunk finishes (completion order; the
+batch puts the rows back in the order of the logs). ``group=1`` runs one log per task.
 
-- :func:`run_sequential`: in this process, one log after another.
+- :func:`run_sequential`: in this process, one chunk after another.
 - :func:`run_processes`: a pool of ``jobs`` processes started with ``spawn`` (safe with the
   threads a caller may have: a progress bar, a Dask client), each limited to one BLAS thread
   (the pool already uses every core). A worker that dies (killed for memory, a crash in a
-  library) breaks the pool: the logs it was running are retried once, each alone in a fresh
-  process, so a log that kills its worker again is the one to blame and gets a failed row;
-  the logs that had not started go on in a new pool.
+  library) breaks the pool: the logs it was running (its whole chunk) are retried once, each
+  alone in a fresh process, so a log that kills its worker again is the one to blame and gets
+  a failed row; the logs that had not started go on in a new pool.
 - :func:`run_dask`: on an existing Dask distributed cluster; tasks carry the log's path or URL
   and the workers read it (nothing big goes through the scheduler). ``retries=1``; a worker
-  that dies is the scheduler's business (``distributed.scheduler.allowed-failures``), and a
-  task it gives up on (``KilledWorker``) is a failed row.
+  that dies is the scheduler's business (``distributed.scheduler.allowed-failures``); the logs
+  of a chunk it gives up on (``KilledWorker``) are tried again, each alone, and a log it gives
+  up on alone is a failed row.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import collections
 import concurrent.futures as cf
 import importlib
+import math
 import multiprocessing
 import os
 import socket
@@ -31,11 +35,18 @@ from typing import Any
 
 from .._version import __version__
 from ..errors import InputError
-from .job import JobResult, Task, run_task
+from .job import GROUP, JobResult, Task, run_tasks
 from .manifest import fallback_device
 from .table import error_row
 
-__all__ = ["BLAS_ENV", "default_jobs", "run_dask", "run_processes", "run_sequential"]
+__all__ = [
+    "BLAS_ENV",
+    "chunks",
+    "default_jobs",
+    "run_dask",
+    "run_processes",
+    "run_sequential",
+]
 
 #: Environment variables that cap the thread pools of BLAS and OpenMP in a worker process.
 BLAS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
@@ -59,19 +70,74 @@ def default_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def run_sequential(tasks: Sequence[Task]) -> Iterator[JobResult]:
-    """Every task in this process, in order.
+#: Log bytes (on disk) a chunk holds at most: the logs of a chunk are in memory at once.
+CHUNK_BYTES = 64 << 20
+
+
+def _size(task: Task) -> int:
+    """The log's size on disk (0 for a URL or a log that cannot be seen from here)."""
+    if "://" in task.log:
+        return 0
+    try:
+        return os.path.getsize(task.log)
+    except OSError:
+        return 0
+
+
+def chunks(
+    tasks: Sequence[Task], group: int, workers: int, budget: int = CHUNK_BYTES
+) -> list[tuple[Task, ...]]:
+    """The tasks cut in chunks of at most ``group`` logs and ``budget`` bytes of logs (a chunk's
+    logs are in memory at once: a large log goes alone), at least one chunk per worker when
+    there are enough tasks (so no worker idles while another holds two chunks' worth).
 
     Parameters
     ----------
     tasks : sequence of Task
+    group : int
+        Logs calibrated together, at most (at least 1).
+    workers : int
+        Workers that run chunks at the same time.
+    budget : int
+        Bytes of log files in a chunk, at most (a log larger than that is a chunk alone).
+
+    Returns
+    -------
+    list of tuple of Task
+        In the tasks' order.
+    """
+    size = max(1, min(group, math.ceil(len(tasks) / max(1, workers))))
+    out: list[tuple[Task, ...]] = []
+    chunk: list[Task] = []
+    held = 0
+    for task in tasks:
+        bytes_ = _size(task) if size > 1 else 0
+        if chunk and (len(chunk) == size or held + bytes_ > budget):
+            out.append(tuple(chunk))
+            chunk, held = [], 0
+        chunk.append(task)
+        held += bytes_
+    if chunk:
+        out.append(tuple(chunk))
+    return out
+
+
+def run_sequential(tasks: Sequence[Task], group: int = GROUP) -> Iterator[JobResult]:
+    """Every task in this process, ``group`` logs at a time calibrated together.
+
+    Parameters
+    ----------
+    tasks : sequence of Task
+    group : int
+        Logs calibrated together (1: one after another).
 
     Yields
     ------
     JobResult
+        In the tasks' order.
     """
-    for task in tasks:
-        yield run_task(task)
+    for chunk in chunks(tasks, group, 1):
+        yield from run_tasks(chunk, group)
 
 
 # ----------------------------------------------------------------------------- processes
@@ -85,11 +151,12 @@ def _init_worker(started: Any) -> None:
     importlib.import_module("threadpoolctl").threadpool_limits(1)
 
 
-def _run_marked(task: Task) -> JobResult:
-    """:func:`run_task`, flagging the task as begun first: when a worker dies, the flags tell
-    the logs it was running from the ones still queued."""
-    _STARTED[task.index] = 1
-    return run_task(task)
+def _run_marked(chunk: tuple[Task, ...], group: int) -> list[JobResult]:
+    """:func:`run_tasks`, flagging the tasks as begun first: when a worker dies, the flags
+    tell the logs it was running from the ones still queued."""
+    for task in chunk:
+        _STARTED[task.index] = 1
+    return run_tasks(chunk, group)
 
 
 def _died(task: Task, what: str) -> JobResult:
@@ -119,12 +186,12 @@ def _alone(task: Task, started: Any) -> JobResult:
     """A retry in a fresh process of its own."""
     with _pool(1, started) as pool:
         try:
-            return pool.submit(_run_marked, task).result()
+            return pool.submit(_run_marked, (task,), 1).result()[0]
         except BrokenProcessPool:
             return _died(task, "the worker process died twice calibrating this log")
 
 
-def run_processes(tasks: Sequence[Task], jobs: int) -> Iterator[JobResult]:
+def run_processes(tasks: Sequence[Task], jobs: int, group: int = GROUP) -> Iterator[JobResult]:
     """Every task in a pool of ``jobs`` processes (see the module's docstring).
 
     Parameters
@@ -133,6 +200,8 @@ def run_processes(tasks: Sequence[Task], jobs: int) -> Iterator[JobResult]:
         With distinct, non-negative ``index`` values.
     jobs : int
         Worker processes.
+    group : int
+        Logs calibrated together in a worker, at most.
 
     Yields
     ------
@@ -143,37 +212,40 @@ def run_processes(tasks: Sequence[Task], jobs: int) -> Iterator[JobResult]:
         return
     context = multiprocessing.get_context("spawn")
     started = context.RawArray("b", max(t.index for t in tasks) + 1)
-    queued = collections.deque(tasks)
+    # chunks of half a worker's share: the pool keeps _AHEAD per worker in flight
+    queued = collections.deque(chunks(tasks, group, _AHEAD * jobs))
     while queued:
         suspects: list[Task] = []
         pool = _pool(jobs, started)
-        running: dict[cf.Future[JobResult], Task] = {}
+        running: dict[cf.Future[list[JobResult]], tuple[Task, ...]] = {}
         try:
             while queued or running:
                 while queued and len(running) < _AHEAD * jobs:
-                    task = queued.popleft()
-                    running[pool.submit(_run_marked, task)] = task
+                    chunk = queued.popleft()
+                    running[pool.submit(_run_marked, chunk, group)] = chunk
                 done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
                 broken = False
                 for future in done:
-                    task = running.pop(future)
+                    chunk = running.pop(future)
                     try:
-                        yield future.result()
+                        yield from future.result()
                     except BrokenProcessPool:
                         broken = True
-                        running[future] = task  # sorted out below with the others
+                        running[future] = chunk  # sorted out below with the others
                 if broken:
                     break
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         # the pool broke: a log that was running may have killed it; the others go on
-        for future, task in running.items():
+        for future, chunk in running.items():
             if future.done() and not future.cancelled() and future.exception() is None:
-                yield future.result()
-            elif started[task.index]:
-                suspects.append(task)
-            else:
-                queued.appendleft(task)
+                yield from future.result()
+                continue
+            for task in chunk:
+                if started[task.index]:
+                    suspects.append(task)
+                else:
+                    queued.appendleft((task,))
         for task in sorted(suspects, key=lambda t: t.index):
             started[task.index] = 0
             yield _alone(task, started)
@@ -246,7 +318,25 @@ def _check_address(scheduler: str) -> None:
         ) from None
 
 
-def run_dask(tasks: Sequence[Task], scheduler: object) -> Iterator[JobResult]:
+def _lost(task: Task, exc: Exception) -> JobResult:
+    """The row of a log whose Dask task failed."""
+    if type(exc).__name__ == "KilledWorker":
+        return _died(task, "the cluster gave up on this log: its workers died")
+    text = " ".join(str(exc).split())[:300]
+    return JobResult(
+        task.index,
+        error_row(
+            task.device or fallback_device(task.log),
+            task.log,
+            f"{type(exc).__name__}: {text} (on the cluster: do its workers "
+            f"have fieldcal {__version__} and its dependencies?)",
+            seconds=0.0,
+            version=__version__,
+        ),
+    )
+
+
+def run_dask(tasks: Sequence[Task], scheduler: object, group: int = GROUP) -> Iterator[JobResult]:
     """Every task on a Dask distributed cluster (see the module's docstring).
 
     Parameters
@@ -254,6 +344,8 @@ def run_dask(tasks: Sequence[Task], scheduler: object) -> Iterator[JobResult]:
     tasks : sequence of Task
     scheduler : str or distributed.Client
         The scheduler's address (``tcp://HOST:PORT``) or a client.
+    group : int
+        Logs calibrated together in a task, at most.
 
     Yields
     ------
@@ -265,31 +357,31 @@ def run_dask(tasks: Sequence[Task], scheduler: object) -> Iterator[JobResult]:
     distributed = importlib.import_module("distributed")
     client, made = _client(scheduler)
     try:
-        keys = [f"fieldcal-batch-{t.batch}-{t.index}" for t in tasks]
-        futures = client.map(run_task, list(tasks), key=keys, retries=1, pure=False)
-        by_key = {f.key: t for f, t in zip(futures, tasks, strict=True)}
-        for future in distributed.as_completed(futures, loop=client.loop):
-            task = by_key[future.key]
+        try:
+            threads = sum(client.nthreads().values())
+        except Exception:  # an older or unusual client: chunks of the full size
+            threads = 1
+        parts = chunks(tasks, group, max(1, threads))
+        keys = [f"fieldcal-batch-{c[0].batch}-{c[0].index}" for c in parts]
+        futures = client.map(run_tasks, parts, group=group, key=keys, retries=1, pure=False)
+        by_key = {f.key: c for f, c in zip(futures, parts, strict=True)}
+        pending = distributed.as_completed(futures, loop=client.loop)
+        for future in pending:
+            chunk = by_key.pop(future.key)
             try:
-                result: JobResult = future.result()
+                results: list[JobResult] = future.result()
             except Exception as exc:  # KilledWorker; fieldcal missing on the workers; ...
-                if type(exc).__name__ == "KilledWorker":
-                    result = _died(task, "the cluster gave up on this log: its workers died")
-                else:
-                    text = " ".join(str(exc).split())[:300]
-                    result = JobResult(
-                        task.index,
-                        error_row(
-                            task.device or fallback_device(task.log),
-                            task.log,
-                            f"{type(exc).__name__}: {text} (on the cluster: do its workers "
-                            f"have fieldcal {__version__} and its dependencies?)",
-                            seconds=0.0,
-                            version=__version__,
-                        ),
-                    )
+                results = [_lost(task, exc) for task in chunk]
+                if len(chunk) > 1 and type(exc).__name__ == "KilledWorker":
+                    # one log of the chunk may be the killer: each again, alone
+                    for task in chunk:
+                        key = f"fieldcal-batch-{task.batch}-{task.index}-alone"
+                        alone = client.submit(run_tasks, (task,), 1, key=key, retries=1, pure=False)
+                        by_key[alone.key] = (task,)
+                        pending.add(alone)
+                    results = []
             future.release()
-            yield result
+            yield from results
     finally:
         if made:
             client.close()

@@ -11,6 +11,11 @@ Everything written depends on the log and the options only (``created`` is the b
 the worker's clock), so every executor writes byte-identical ``cal.json`` files; the wall time
 goes into the summary row alone.
 
+:func:`run_tasks` runs a worker's share of the logs (a chunk of up to :data:`GROUP`) in
+threads taking turns, their Levenberg-Marquardt runs stepped together
+(:mod:`fieldcal.likelihood.fleet`): the same work and the same files as :func:`run_task` on
+each, the solver's fixed cost paid once per step for the chunk.
+
 A device's folder is claimed by the log writing into it (``.owner.json``, created
 exclusively): a second log of the same batch that names the same device gets an error row
 instead of replacing the first one's files.
@@ -20,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import importlib
 import json
 import math
@@ -28,7 +34,7 @@ import secrets
 import tempfile
 import time
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -38,6 +44,8 @@ from .. import _files
 from .._version import __version__
 from ..calibration import Calibration
 from ..errors import InputError
+from ..likelihood.fleet import run_together
+from ..likelihood.fleet import seconds as _clock
 from ..logs import Log, load_log
 from ..output import exports as export_formats
 from ..pipeline import LogSettings, document, run_log
@@ -47,12 +55,17 @@ from .table import COLUMN_TYPES, error_row, row_for
 
 __all__ = [
     "CRASH_ENV",
+    "GROUP",
     "JobResult",
     "Task",
     "export_name",
     "read_row",
     "run_task",
+    "run_tasks",
 ]
+
+#: Logs calibrated together by one worker (their LM runs stepped at once), at most.
+GROUP = 64
 
 
 #: Testing only: a log whose file name this variable lists (``a.csv,b.csv:once``) makes its
@@ -215,7 +228,29 @@ def run_task(task: Task) -> JobResult:
     JobResult
         The row (verdict ``fail`` with ``error`` when the log gave no result).
     """
-    started = time.perf_counter()
+    return _finish(task, _calibrate(task))
+
+
+@dataclass(frozen=True)
+class _Calibrated:
+    """A log read and calibrated, its files not yet written."""
+
+    device: str
+    samples: int
+    calibration: Calibration
+    poses: Any
+    warned: tuple[str, ...]
+    seconds: float
+
+
+def _failed(task: Task, device: str, exc: BaseException, seconds: float) -> JobResult:
+    row = error_row(device, task.log, _message(exc), seconds=seconds, version=__version__)
+    return JobResult(task.index, row)
+
+
+def _calibrate(task: Task) -> _Calibrated | JobResult:
+    """Read and calibrate the log (no file written); a failure is its row."""
+    started = _clock()
     device = task.device or fallback_device(task.log)
     try:
         _crash_for_test(task.log)
@@ -229,31 +264,71 @@ def run_task(task: Task) -> JobResult:
         warned = [
             " ".join(str(w.message).split()) for w in caught if w.category is not RuntimeWarning
         ]
+        return _Calibrated(
+            device, log.n, cal, run.poses, tuple(dict.fromkeys(warned)), _clock() - started
+        )
+    except Exception as exc:  # any failure is this log's row; Ctrl-C still stops the batch
+        return _failed(task, device, exc, _clock() - started)
+
+
+def _finish(task: Task, done: _Calibrated | JobResult) -> JobResult:
+    """Write the calibrated log's files and make its row."""
+    if isinstance(done, JobResult):
+        return done
+    started = time.perf_counter()
+    try:
         export_error = ""
         if task.out is not None:
-            export_error = _write(task, device, cal, document(cal, run.poses))
+            export_error = _write(
+                task, done.device, done.calibration, document(done.calibration, done.poses)
+            )
         row = row_for(
-            cal,
-            device=device,
+            done.calibration,
+            device=done.device,
             log=task.log,
-            samples=log.n,
-            seconds=time.perf_counter() - started,
+            samples=done.samples,
+            seconds=done.seconds + time.perf_counter() - started,
             version=__version__,
-            warned=list(dict.fromkeys(warned)),
+            warned=list(done.warned),
         )
         row["export_error"] = export_error
         if task.out is not None:
-            _files.write_text(Path(task.out) / device / ROW_FILE, _row_json(row))
-        return JobResult(task.index, row, cal if task.keep else None)
+            _files.write_text(Path(task.out) / done.device / ROW_FILE, _row_json(row))
+        return JobResult(task.index, row, done.calibration if task.keep else None)
     except Exception as exc:  # any failure is this log's row; Ctrl-C still stops the batch
-        row = error_row(
-            device,
-            task.log,
-            _message(exc),
-            seconds=time.perf_counter() - started,
-            version=__version__,
-        )
-        return JobResult(task.index, row)
+        return _failed(task, done.device, exc, done.seconds + time.perf_counter() - started)
+
+
+def run_tasks(tasks: Sequence[Task], group: int = GROUP) -> list[JobResult]:
+    """Calibrate a worker's logs together: :func:`run_task` on each, the calibrations in up
+    to ``group`` threads whose LM runs are stepped together (see the module's docstring), the
+    files then written in the order of the logs (a device two logs name is the first one's,
+    as one at a time).
+
+    Parameters
+    ----------
+    tasks : sequence of Task
+    group : int
+        Logs in flight at once (1: one after another, as :func:`run_task`).
+
+    Returns
+    -------
+    list of JobResult
+        In the order of ``tasks``; each row's ``seconds`` is the log's own time (its turns and
+        its share of the stepped LM runs, then its files).
+    """
+    if group <= 1 or len(tasks) <= 1:
+        return [run_task(task) for task in tasks]
+    with _blas_one_thread():  # once for all: the threads' own limits then change nothing
+        answers = run_together([functools.partial(_calibrate, task) for task in tasks], group)
+    out = []
+    for task, answer in zip(tasks, answers, strict=True):
+        if isinstance(answer, (_Calibrated, JobResult)):
+            out.append(_finish(task, answer))
+        else:  # _calibrate returns every Exception as a row: this is what escaped it
+            device = task.device or fallback_device(task.log)
+            out.append(_failed(task, device, answer or RuntimeError("cancelled"), 0.0))
+    return out
 
 
 def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> str:

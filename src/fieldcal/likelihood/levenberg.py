@@ -15,6 +15,8 @@ At λ = 0, ``S⁻¹`` is the covariance of the globals (the Cramér-Rao bound, s
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import cast
 
@@ -121,6 +123,12 @@ class Result:
     converged: bool
 
 
+#: ``(problem, state, max_iter, tol, lam, known_minimum) -> Result``: a service that steps
+#: this thread's runs together with other threads' (:mod:`.fleet`), set per thread by it.
+Service = Callable[[Problem, State, int, float, float, float | None], Result]
+SERVICE: ContextVar[Service | None] = ContextVar("fieldcal_lm_service", default=None)
+
+
 def levenberg_marquardt(
     problem: Problem,
     state: State,
@@ -140,7 +148,26 @@ def levenberg_marquardt(
     ``known_minimum``: the J of a minimum already found from another start. Once the iterates
     are in Gauss-Newton's quadratic regime and the linear model predicts that very value, this
     start is heading for the same minimum and is abandoned (saves its last iterations).
+
+    In a thread of a :class:`~.fleet.Fleet` (``fieldcal.calibrate_many``) the run is handed to
+    the fleet, which steps it together with the other threads' runs (:mod:`.lockstep`): the
+    result is the same (to rounding; bit for bit with the BLAS we test on).
     """
+    service = SERVICE.get()
+    if service is not None:
+        return service(problem, state, max_iter, tol, lam, known_minimum)
+    return solve_alone(problem, state, max_iter, tol, lam, known_minimum)
+
+
+def solve_alone(
+    problem: Problem,
+    state: State,
+    max_iter: int = 100,
+    tol: float = 1e-10,
+    lam: float = 1e-4,
+    known_minimum: float | None = None,
+) -> Result:
+    """:func:`levenberg_marquardt` in this thread, whatever service is set."""
     e = residuals(problem, state)
     cost = _cost(e)
     nu = 2.0

@@ -21,6 +21,7 @@ from scipy.special import chdtrc
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
 from ...likelihood.levenberg import Result, levenberg_marquardt
+from ...likelihood.lockstep import Request, lockstep
 from ...likelihood.pose_model import (
     Problem,
     State,
@@ -80,6 +81,26 @@ def _canonical(problem: Problem, state: State) -> State:
     # Calibration.with_mag_handedness, which fieldcal.calibrate applies afterwards
     det = np.prod(np.linalg.det(np.stack([state.gains[other], state.gains[problem.frame]])))
     return flip_other(problem, state, other) if det < 0 else state
+
+
+def _solve_starts(
+    problem: Problem, states: list[State], max_iter: int, tol: float, known: float | None
+) -> list[Result]:
+    """LM from each start, each told ``known`` (the J of a minimum found before them): one at a
+    time for one start, else stepped together (:func:`~fieldcal.likelihood.lockstep.
+    lockstep`, the same result per start as alone). A singular system raises, as alone."""
+    if len(states) < 2:
+        return [
+            levenberg_marquardt(problem, s, max_iter=max_iter, tol=tol, known_minimum=known)
+            for s in states
+        ]
+    requests = [Request(problem, s, max_iter, tol, known_minimum=known) for s in states]
+    out = []
+    for res in lockstep(requests):
+        if isinstance(res, Exception):
+            raise res
+        out.append(res)
+    return out
 
 
 def fit(
@@ -151,20 +172,20 @@ def fit(
     total_iter = 0
 
     def consider(state: State | None, label: str) -> None:
+        consider_all([(state, label)])
+
+    def consider_all(candidates: list[tuple[State | None, str]]) -> None:
+        """Run the starts (together when several: :func:`_solve_starts`) and keep the first
+        to reach the lowest J."""
         nonlocal best, total_iter
-        if state is None:
-            return
-        res = levenberg_marquardt(
-            problem,
-            state,
-            max_iter=int(max_iter),
-            tol=float(tol),
-            known_minimum=None if best is None else best.cost,
-        )
-        total_iter += res.iterations
-        tried.append(label)
-        if best is None or res.cost < best.cost - 1e-9 * (1 + res.cost):
-            best = res
+        todo = [(state, name) for state, name in candidates if state is not None]
+        known = None if best is None else best.cost
+        results = _solve_starts(problem, [s for s, _ in todo], int(max_iter), float(tol), known)
+        for (_, name), res in zip(todo, results, strict=True):
+            total_iter += res.iterations
+            tried.append(name)
+            if best is None or res.cost < best.cost - 1e-9 * (1 + res.cost):
+                best = res
 
     def label(model: tuple[str, str]) -> str:
         return model[0] if len(problem.sensors) == 1 or model[0] == model[1] else "/".join(model)
@@ -183,12 +204,14 @@ def fit(
     # with new weights) stays in the basin it was given
     doubtful = initial is None and chdtrc(problem.dof, best.cost if best else np.inf) < P_RETRY
     if few or best is None or doubtful:
-        for model in starts:
-            if label(model) not in tried:
-                consider(closed_form_start(problem, model), label(model))
+        more = [
+            (closed_form_start(problem, model), label(model))
+            for model in starts
+            if label(model) not in tried
+        ]
         if n < PENCIL_POSES:
-            for k, state in enumerate(few_pose_starts(problem)):
-                consider(state, f"pencil{k}")
+            more += [(state, f"pencil{k}") for k, state in enumerate(few_pose_starts(problem))]
+        consider_all(more)
     if best is None:
         raise ValueError(
             "no closed-form start: the pose means do not outline an ellipsoid; "

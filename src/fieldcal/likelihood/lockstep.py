@@ -1,0 +1,359 @@
+"""Levenberg-Marquardt stepped for many problems at once, each deciding as it would alone.
+
+:func:`lockstep` takes B problems of one layout (:func:`.stacked.layout`: same sensors, frame,
+poses, globals, temperature orders) with their starts and steps them together: one stacked
+normal-equation build, one batched Schur reduction (over B and the N pose blocks), one exp-map
+step and one residual evaluation per round for every problem still running. Each problem keeps
+its own λ, ν, acceptance, stopping tests and iteration count, exactly as
+:func:`.levenberg.levenberg_marquardt` keeps them; a problem that stops is left out of the
+following rounds. The stacked model (:mod:`.stacked`) and the reductions here are computed
+with the same numpy and LAPACK calls per problem as the single solver's, and the scalar
+decisions with the same IEEE operations (λ's update with Python's ``pow``, which numpy's
+``power`` does not always equal), so each problem's result is the single solver's (bit for bit with OpenBLAS on x86-64; a BLAS
+that rounds a batched product differently may differ in the last bits, which
+``tests/likelihood/test_lockstep.py`` allows to 1e-9 relative).
+
+A problem whose pose blocks or reduced system are singular gets the ``LinAlgError`` the single
+solver would raise, in its place in the answer; the others go on.
+
+The cost of a round is the fixed cost of ~40 numpy calls on small arrays plus a per-problem
+LAPACK solve of the G x G reduced system: for many problems, far less per problem than one
+problem's round alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import cast
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg.lapack import dgesv as _dgesv
+
+from .levenberg import Result
+from .pose_model import Problem, State
+from .stacked import (
+    Stack,
+    StackState,
+    apply_steps,
+    jacobians,
+    residuals,
+    rotation_bases,
+    stack,
+    stack_states,
+    unstack_state,
+)
+
+Array = NDArray[np.float64]
+Index = NDArray[np.intp]
+
+__all__ = ["Request", "lockstep"]
+
+
+@dataclass(frozen=True)
+class Request:
+    """One problem for :func:`lockstep`: :func:`.levenberg.levenberg_marquardt`'s arguments."""
+
+    problem: Problem
+    state: State
+    max_iter: int = 100
+    tol: float = 1e-10
+    lam: float = 1e-4
+    known_minimum: float | None = None
+
+
+@dataclass
+class _Normal:
+    """:class:`.levenberg.Normal` of B problems (without the Jacobians)."""
+
+    U: Array  # (B, N, p, p)
+    W: Array  # (B, N, p, G)
+    V: Array  # (B, G, G)
+    gp: Array  # (B, N, p)
+    gg: Array  # (B, G)
+    basis: Array | None  # (B, N, 3, 2)
+
+    def take(self, idx: Index) -> _Normal:
+        return _Normal(
+            self.U[idx],
+            self.W[idx],
+            self.V[idx],
+            self.gp[idx],
+            self.gg[idx],
+            None if self.basis is None else self.basis[idx],
+        )
+
+    def put(self, idx: Index, other: _Normal) -> None:
+        self.U[idx], self.W[idx], self.V[idx] = other.U, other.W, other.V
+        self.gp[idx], self.gg[idx] = other.gp, other.gg
+        if self.basis is not None and other.basis is not None:
+            self.basis[idx] = other.basis
+
+
+def _normal(sp: Stack, st: StackState, e: Array) -> _Normal:
+    """:func:`.levenberg.normal_equations` of each problem."""
+    basis = rotation_bases(sp, st)
+    Jp, Jg = jacobians(sp, st, basis)
+    B, G = Jg.shape[0], Jg.shape[3]
+    JpT = Jp.transpose(0, 1, 3, 2)
+    flat = Jg.reshape(B, -1, G)
+    return _Normal(
+        U=JpT @ Jp,
+        W=JpT @ Jg,
+        V=flat.transpose(0, 2, 1) @ flat,
+        gp=(JpT @ e[..., None])[..., 0],
+        gg=(e.reshape(B, 1, -1) @ flat)[:, 0],
+        basis=basis,
+    )
+
+
+def _costs(e: Array) -> Array:
+    """Eq. 8's J of each problem."""
+    flat = e.reshape(len(e), -1)
+    out: Array = np.vecdot(flat, flat)
+    return out
+
+
+def _inverses(damped: Array) -> tuple[Array, list[int]]:
+    """The damped pose blocks' inverses (B, N, p, p) and the problems with a singular block
+    (their inverses are left as NaN)."""
+    try:
+        inverse = cast(Array, np.linalg.inv(damped))
+        return inverse, []
+    except np.linalg.LinAlgError:
+        out = np.full_like(damped, np.nan)
+        bad = []
+        for b in range(len(damped)):
+            try:
+                out[b] = np.linalg.inv(damped[b])
+            except np.linalg.LinAlgError:
+                bad.append(b)
+        return out, bad
+
+
+def _steps(ne: _Normal, lam: Array) -> tuple[Array, Array, Array, list[int]]:
+    """:func:`.levenberg.solve_step` of each problem: the damped steps (B, G), (B, N, p), the
+    predicted decreases (B,) and the problems whose system is singular."""
+    B, n, p, _ = ne.U.shape
+    G = ne.V.shape[1]
+    dU = ne.U.reshape(B, n, p * p)[:, :, :: p + 1]
+    damp_p = lam[:, None, None] * dU + 1e-12 * (1.0 + dU)
+    damped = ne.U.copy()
+    damped.reshape(B, n, p * p)[:, :, :: p + 1] += damp_p
+    Uinv, bad = _inverses(damped)
+    Y = Uinv @ ne.W
+    dV = ne.V.reshape(B, G * G)[:, :: G + 1]
+    damp_g = lam[:, None] * dV + 1e-12 * (1.0 + dV)
+    Wt = ne.W.reshape(B, -1, G).transpose(0, 2, 1)
+    S = ne.V - Wt @ Y.reshape(B, -1, G)
+    S.reshape(B, G * G)[:, :: G + 1] += damp_g
+    z = (Uinv @ ne.gp[..., None])[..., 0]
+    rhs = (Wt @ z.reshape(B, -1, 1))[..., 0] - ne.gg
+    dg = np.zeros((B, G))
+    for b in range(B):
+        if bad and b in bad:
+            continue
+        _, _, x, info = _dgesv(S[b], rhs[b])
+        if info > 0:
+            bad.append(b)
+        else:
+            dg[b] = x
+    dp = (Y @ dg[:, None, :, None])[..., 0]
+    dp += z
+    dp = -dp
+    flat_dp, flat_gp = dp.reshape(B, -1), ne.gp.reshape(B, -1)
+    pred = (
+        -(np.vecdot(dg, ne.gg) + np.vecdot(flat_dp, flat_gp))
+        + np.vecdot(damp_g * dg, dg)
+        + np.vecdot(damp_p.reshape(B, -1) * flat_dp, flat_dp)
+    )
+    return dg, dp, pred, bad
+
+
+def _pick(x: Array, idx: Index) -> Array:
+    """``x[idx]``, or ``x`` itself when ``idx`` is every row in order (no copy)."""
+    return x if idx.size == len(x) else x[idx]
+
+
+@dataclass
+class _Run:
+    """The running problems' values (row j is problem ``ids[j]``), compacted as they stop."""
+
+    ids: Index
+    sp: Stack
+    st: StackState
+    e: Array
+    cost: Array
+    ne: _Normal
+    lam: Array
+    nu: Array
+    last_rho: Array
+    it: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+    moved: NDArray[np.bool_]
+    max_iter: NDArray[np.int64]
+    tol: Array
+    has_km: NDArray[np.bool_]
+    km: Array
+
+    def keep(self, idx: Index) -> _Run:
+        """The rows ``idx`` only."""
+        return _Run(
+            self.ids[idx],
+            self.sp.take(idx),
+            self.st.take(idx),
+            self.e[idx],
+            self.cost[idx],
+            self.ne.take(idx),
+            self.lam[idx],
+            self.nu[idx],
+            self.last_rho[idx],
+            self.it[idx],
+            self.converged[idx],
+            self.moved[idx],
+            self.max_iter[idx],
+            self.tol[idx],
+            self.has_km[idx],
+            self.km[idx],
+        )
+
+
+def lockstep(requests: Sequence[Request]) -> list[Result | Exception]:
+    """Run :func:`.levenberg.levenberg_marquardt` on each request, all stepped together.
+
+    Parameters
+    ----------
+    requests : sequence of Request
+        Problems of one :func:`.stacked.layout` with their starts and options.
+
+    Returns
+    -------
+    list of Result or Exception
+        In the order of ``requests``: what the single solver returns for that request, or the
+        ``LinAlgError`` it raises.
+    """
+    B = len(requests)
+    problems = [r.problem for r in requests]
+    out: list[Result | Exception | None] = [None] * B
+    if B == 0:
+        return []
+    sp = stack(problems)
+    st = stack_states(problems, [r.state for r in requests])
+    e = residuals(sp, st)
+    run = _Run(
+        np.arange(B),
+        sp,
+        st,
+        e,
+        _costs(e),
+        _normal(sp, st, e),
+        np.array([float(r.lam) for r in requests]),
+        np.full(B, 2.0),
+        np.zeros(B),
+        np.zeros(B, dtype=np.int64),
+        np.zeros(B, dtype=bool),
+        np.zeros(B, dtype=bool),
+        np.array([int(r.max_iter) for r in requests]),
+        np.array([float(r.tol) for r in requests]),
+        np.array([r.known_minimum is not None for r in requests]),
+        np.array([np.nan if r.known_minimum is None else r.known_minimum for r in requests]),
+    )
+    stopped = run.max_iter <= 0
+    while True:
+        if stopped.any():
+            for j in np.flatnonzero(stopped):
+                if out[run.ids[j]] is None:  # not failed
+                    out[run.ids[j]] = _result(run, int(j), requests[run.ids[j]].state)
+            if stopped.all():
+                break
+            run = run.keep(np.flatnonzero(~stopped))
+        done, failed = _round(run)
+        for k in failed:
+            out[run.ids[k]] = np.linalg.LinAlgError("Singular matrix")
+        stopped = done | (run.it >= run.max_iter)
+    return [r if r is not None else np.linalg.LinAlgError("no result") for r in out]
+
+
+def _result(run: _Run, j: int, start: State) -> Result | Exception:
+    return Result(
+        unstack_state(run.st, j) if run.moved[j] else start,
+        run.e[j].copy(),
+        float(run.cost[j]),
+        int(run.it[j]),
+        bool(run.converged[j]),
+    )
+
+
+def _round(run: _Run) -> tuple[NDArray[np.bool_], list[int]]:
+    """One iteration of :func:`.levenberg.levenberg_marquardt`'s loop for every running
+    problem: which of them stopped, and which raised (singular)."""
+    run.it += 1
+    dg, dp, pred, bad = _steps(run.ne, run.lam)
+    done = np.zeros(len(run.ids), dtype=bool)
+    done[bad] = True
+    cost = run.cost
+    with np.errstate(all="ignore"):
+        known = (
+            run.has_km
+            & (np.abs(run.last_rho - 1.0) < 0.1)
+            & (np.abs(cost - pred - run.km) <= 1e-6 * (1.0 + run.km))
+        )
+    known &= ~done
+    run.converged[known] = True
+    done |= known
+    finite = np.isfinite(dg).all(axis=1) & np.isfinite(dp.reshape(len(dp), -1)).all(axis=1)
+    blown = ~done & ~np.isfinite(pred) & ~finite
+    run.lam[blown] *= 10.0
+    go = np.flatnonzero(~done & ~blown)
+    if not go.size:
+        return done, bad
+    whole = go.size == len(run.ids)
+    basis = None if run.ne.basis is None else _pick(run.ne.basis, go)
+    sub_sp = run.sp if whole else run.sp.take(go)
+    sub_st = run.st if whole else run.st.take(go)
+    trial = apply_steps(sub_sp, sub_st, _pick(dg, go), _pick(dp, go), basis)
+    e_new = residuals(sub_sp, trial)
+    cost_new = _costs(e_new)
+    pred_go, cost_go = _pick(pred, go), _pick(cost, go).copy()
+    with np.errstate(all="ignore"):
+        gain = cost_go - cost_new
+        rho = np.where(pred_go > 0, gain / np.where(pred_go > 0, pred_go, 1.0), -1.0)
+    accept = (rho > 0) & np.isfinite(cost_new)
+    a = np.flatnonzero(accept)
+    if a.size:
+        ia = go[a]
+        if ia.size == len(run.ids):
+            run.st, run.e = trial, e_new
+        else:
+            run.st.put(ia, trial.take(a))
+            run.e[ia] = e_new[a]
+        run.last_rho[ia] = rho[a]
+        run.moved[ia] = True
+        # Python's pow, as the single solver (numpy's power differs in the last bit)
+        factor = [max(1.0 / 3.0, 1.0 - (2.0 * r - 1.0) ** 3) for r in rho[a].tolist()]
+        run.lam[ia] *= np.array(factor)
+        run.nu[ia] = 2.0
+        c = cost_new[a]
+        run.cost[ia] = c
+        quadratic = (np.abs(rho[a] - 1.0) < 0.1) & (gain[a] <= 1e-8 * c)
+        stop = (gain[a] <= run.tol[ia] * (1.0 + c)) | quadratic | (c < 1e-300)
+        run.converged[ia[stop]] = True
+        done[ia[stop]] = True
+        more = ia[~stop]
+        if more.size == len(run.ids):
+            run.ne = _normal(run.sp, run.st, run.e)
+        elif more.size:
+            run.ne.put(more, _normal(run.sp.take(more), run.st.take(more), run.e[more]))
+    r = np.flatnonzero(~accept)
+    if r.size:
+        ir = go[r]
+        c = cost_go[r]
+        nothing = (pred_go[r] <= run.tol[ir] * 1e-3 * (1.0 + c)) & (run.lam[ir] < 1e-3)
+        run.converged[ir[nothing]] = True
+        done[ir[nothing]] = True
+        grow = ir[~nothing]
+        run.lam[grow] *= run.nu[grow]
+        run.nu[grow] *= 2.0
+        done[grow[run.lam[grow] > 1e16]] = True
+    return done, bad
