@@ -363,7 +363,9 @@ def scaling(sizes: tuple[int, ...] = (100, 400, 1200)) -> str:
         "shared part's factor); `fit_gyro` timed alone (one BLAS thread), its peak memory "
         "from tracemalloc in a second run. Before (fieldcal 0.x, the dense 3N×3N segment "
         "covariance multiplied out each round, issue 23): 0.36 s at 100 poses, 6.2 s at 400, "
-        "about 100 s and 1.6 GB at 1,200.",
+        "about 100 s and 1.6 GB at 1,200; with the banded normal equations but every sample's "
+        "matrices at once and a Python loop per pose in the solver (issue 24's start): 0.91 s, "
+        "3.66 s and 11.70 s, 152 MB at 1,200 (load about 5).",
         "",
         "| poses | rows | segments | time | peak memory | iterations |",
         "|---|---|---|---|---|---|",
@@ -390,11 +392,16 @@ def scaling(sizes: tuple[int, ...] = (100, 400, 1200)) -> str:
         print(lines[-1], flush=True)
     lines += [
         "",
-        "Time and memory grow with the rows (the integration of every sample, a few passes "
-        "per evaluation) and the poses alike, linearly: the normal equations are block "
-        "tridiagonal over the poses with a border of the gain and the shared orientation "
-        "errors (`gyro/gyro_normal.py`), equal to the dense computation to 1e-9 "
-        "(`tests/gyro/test_gyro_normal.py`).",
+        "Time and memory grow with the rows and the poses alike, linearly: the normal "
+        "equations are block tridiagonal over the poses with a border of the gain and the "
+        "shared orientation errors (`gyro/gyro_normal.py`, LAPACK's banded Cholesky in "
+        "`gyro/gyro_banded.py`), equal to the dense computation to 1e-9 "
+        "(`tests/gyro/test_gyro_normal.py`); the passes over the motion's intervals "
+        "(`gyro/gyro_pass.py`) take a chunk of segments at a time, by component, and the last "
+        "few are kept, so a fit is about nine passes over the samples between the poses "
+        "(`tests/gyro/test_gyro_pass.py` against the interval-by-interval computation). The "
+        "peak memory is the log's gyroscope samples and the segments' intervals (a few "
+        "arrays of their length) plus a few MB of work arrays.",
     ]
     return "\n".join(lines)
 

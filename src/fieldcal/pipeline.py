@@ -25,7 +25,7 @@ from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .geometry.rotations import hat, rotation_angle_deg
 from .gyro.estimate import GyroFit, fit_gyro
 from .gyro.gyro_temperature import with_bias_temperature
-from .gyro.integrate import effective_time, integrate
+from .gyro.integrate import effective_time, segment_turns
 from .likelihood.cramer_rao import pose_rotation_factors
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.inputs import read_log
@@ -700,19 +700,28 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
         matrix[:n, :n] = covariance.matrix
         matrix[n:, n:] = fit.covariance.matrix
         covariance = ParameterCovariance((*covariance.names, *fit.covariance.names), matrix)
-    segments = []
-    for (first, last), residual in zip(fit.segments, fit.segment_residual_deg, strict=True):
-        # the turn the calibrated gyroscope integrates over the segment
-        turn = integrate(time[first : last + 1], sensor.correct(log.gyro[first : last + 1]))
-        segments.append(
-            {
-                "start": int(log.index[first]),
-                "stop": int(log.index[last]) + 1,
-                "seconds": float(time[last] - time[first]),
-                "angle_deg": float(rotation_angle_deg(turn)),
-                "residual_deg": float(residual),
-            }
+    spans = np.array(fit.segments, dtype=np.int64).reshape(-1, 2)
+    # the turn the calibrated gyroscope integrates over each segment, all at once: the
+    # segments' rows gathered (only they are corrected)
+    length = spans[:, 1] - spans[:, 0] + 1
+    start = np.cumsum(length) - length
+    rows = np.repeat(spans[:, 0] - start, length) + np.arange(int(length.sum()))
+    turns = segment_turns(
+        time[rows], sensor.correct(log.gyro[rows]), np.column_stack([start, start + length - 1])
+    )
+    angles = rotation_angle_deg(turns)
+    segments = [
+        {
+            "start": int(log.index[first]),
+            "stop": int(log.index[last]) + 1,
+            "seconds": float(time[last] - time[first]),
+            "angle_deg": float(angle),
+            "residual_deg": float(residual),
+        }
+        for (first, last), angle, residual in zip(
+            fit.segments, angles, fit.segment_residual_deg, strict=True
         )
+    ]
     how: dict[str, Any] = {
         "method": fit.method,
         "drift": fit.drift,

@@ -6,7 +6,8 @@
   joint calibration (``method="rotations"``) or, with an accelerometer alone, against the
   gravity directions (``"gravity"``); the result is a :class:`GyroFit` (:mod:`.gyro_result`).
   Its steps: :mod:`.gyro_data` (poses, drift, segments), :mod:`.gyro_model` (residuals,
-  Jacobians), :mod:`.gyro_start`, :mod:`.gyro_noise` (the segments' covariance in its
+  Jacobians), :mod:`.gyro_pass` (one pass over the intervals, a chunk at a time),
+  :mod:`.gyro_start`, :mod:`.gyro_noise` (the segments' covariance in its
   structure), :mod:`.gyro_banded` and :mod:`.gyro_normal` (normal equations linear in the
   number of poses), :mod:`.gyro_solver`, :mod:`.gyro_observability`,
   :mod:`.gyro_uncertainty`;

@@ -250,7 +250,7 @@ def _refused(rounds: Rounds, x: Array, method: str) -> tuple[tuple[tuple[int, in
     if not rounds.dropped:
         return (), np.zeros(0)
     out = rounds.model_of(sorted(rounds.dropped))
-    return out.data.rows, residual_degrees(out.evaluate(x, with_jacobian=False).r, method)
+    return out.data.rows, residual_degrees(out.residuals(x), method)
 
 
 def _observable(unobservable: tuple[str, ...]) -> tuple[str, ...]:

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from scipy.special import chdtrc, fdtrc
 
 from ..errors import InputError
-from .integrate import Hold
+from .integrate import Hold, runs
 
 Array = NDArray[np.float64]
 
@@ -73,9 +73,11 @@ def check_saturation(
     sigma: Array,
 ) -> None:
     """Refuse a gyroscope that clips during the turns: its integral would be short."""
-    motion = np.zeros(len(raw), dtype=bool)
-    for k in links:
-        motion[rows[k, 1] - 1 : rows[k + 1, 0] + 1] = True
+    # the rows of the turns: from the last row of pose k to the first of k + 1, inclusive
+    edges = np.zeros(len(raw) + 1, dtype=np.int64)
+    np.add.at(edges, rows[links, 1] - 1, 1)
+    np.add.at(edges, rows[links + 1, 0] + 1, -1)
+    motion = np.cumsum(edges[:-1]) > 0
     for j, axis in enumerate("xyz"):
         x = raw[:, j]
         if full_scale is not None:
@@ -113,32 +115,32 @@ def build_segments(
     pose_time: Array,
     hold: Hold,
 ) -> Segments:
-    raws, dts, lams, segs, firsts, lasts, spans = [], [], [], [], [], [], []
-    position = 0
-    for m, k in enumerate(links):
-        a, c = int(rows[k, 1] - 1), int(rows[k + 1, 0])  # last row of pose k, first of k + 1
-        x = raw[a : c + 1]
-        tt = t[a : c + 1]
-        u = 0.5 * (x[1:] + x[:-1]) if hold == "midpoint" else x[:-1]
-        mid = 0.5 * (tt[1:] + tt[:-1]) if hold == "midpoint" else tt[:-1]
-        lam = (mid - pose_time[k]) / (pose_time[k + 1] - pose_time[k])
-        raws.append(u)
-        dts.append(np.diff(tt))
-        lams.append(lam)
-        segs.append(np.full(len(u), m, dtype=np.int64))
-        firsts.append(position)
-        position += len(u)
-        lasts.append(position - 1)
-        spans.append((a, c))
+    """The motion segments ``links`` (``k``: from pose ``k`` to ``k + 1``): every interval
+    from the last row of pose ``k`` to the first of ``k + 1``, all segments at once."""
+    k = np.asarray(links, dtype=np.int64)
+    a, c = rows[k, 1] - 1, rows[k + 1, 0]  # last row of pose k, first of k + 1
+    length = c - a  # intervals per segment
+    last = np.cumsum(length) - 1
+    first = last - length + 1
+    seg = np.repeat(np.arange(len(k), dtype=np.int64), length)
+    left = np.arange(len(seg), dtype=np.int64) + np.repeat(a - first, length)  # row before
+    right = left + 1
+    if hold == "midpoint":
+        u = 0.5 * (raw[right] + raw[left])
+        mid = 0.5 * (t[right] + t[left])
+    else:
+        u, mid = raw[left], t[left]
+    before = pose_time[k][seg]
+    lam = (mid - before) / (pose_time[k + 1][seg] - before)
     return Segments(
-        np.concatenate(raws),
-        np.concatenate(dts),
-        np.concatenate(lams),
-        np.concatenate(segs),
-        np.array(firsts, dtype=np.int64),
-        np.array(lasts, dtype=np.int64),
-        np.asarray(links, dtype=np.int64),
-        tuple(spans),
+        u,
+        t[right] - t[left],
+        lam,
+        seg,
+        first,
+        last,
+        k,
+        tuple(zip(a.tolist(), c.tolist(), strict=True)),
     )
 
 
@@ -165,29 +167,34 @@ def pose_statistics(
     n_pose = len(rows)
     means = np.empty((n_pose, 3))
     times = np.empty(n_pose)
-    durations = np.empty(n_pose)
-    scatter = np.zeros((3, 3))
-    dof = 0
     steps = np.diff(t)
     typical = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
-    block_scatter = np.zeros((3, 3))
-    block_dof = 0
     block_len = max(4, round(BLOCK_SECONDS / typical))
-    for i, (a, b) in enumerate(rows):
-        x = raw[a:b]
-        means[i] = x.mean(axis=0)
-        times[i] = float(t[a:b].mean())
-        durations[i] = float(t[b - 1] - t[a]) + typical
-        d = x - means[i]
+    a, b = rows[:, 0], rows[:, 1]
+    durations = (t[b - 1] - t[a]) + typical
+    count = (b - a) // block_len  # whole blocks per pose
+    count[count < 2] = 0
+    scatter = np.zeros((3, 3))
+    block_scatter = np.zeros((3, 3))
+    # the poses a run at a time (their rows gathered: a few MB whatever the log's length)
+    for run in runs(a, b - 1, POSE_ROWS):
+        length = b[run] - a[run]
+        x = raw[_ranges(a[run], length)]
+        starts = np.cumsum(length) - length
+        means[run] = np.add.reduceat(x, starts, axis=0) / length[:, None]
+        times[run] = np.add.reduceat(t[_ranges(a[run], length)], starts) / length
+        d = x - np.repeat(means[run], length, axis=0)
         scatter += d.T @ d
-        dof += len(x) - 1
-    for a, b in rows:
-        count = (b - a) // block_len
-        if count >= 2:
-            blocks = raw[a : a + count * block_len].reshape(count, block_len, 3).mean(axis=1)
-            d = blocks - blocks.mean(axis=0)
+        k = count[run]
+        if np.any(k):
+            blocks = raw[_ranges(a[run], k * block_len)].reshape(-1, block_len, 3).mean(axis=1)
+            first = np.cumsum(k) - k
+            some = k > 0
+            centre = np.add.reduceat(blocks, first[some], axis=0) / k[some, None]
+            d = blocks - np.repeat(centre, k[some], axis=0)
             block_scatter += d.T @ d
-            block_dof += count - 1
+    dof = int(np.sum(b - a - 1))
+    block_dof = int(np.sum(np.maximum(count - 1, 0)))
     cov = scatter / max(dof, 1)
     q_white = cov * typical
     factor = 1.0
@@ -198,6 +205,19 @@ def pose_statistics(
         if ratio > 1.0 + 3.0 * math.sqrt(2.0 / block_dof):
             factor = ratio
     return means, times, durations, cov, dof, q_white * factor
+
+
+#: Rows of still poses taken at a time by :func:`pose_statistics`.
+POSE_ROWS = 1 << 16
+
+
+def _ranges(start: NDArray[np.int64], length: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The rows ``start[i] … start[i] + length[i] − 1`` of every ``i``, concatenated."""
+    offsets = np.cumsum(length) - length
+    out: NDArray[np.int64] = np.arange(int(length.sum()), dtype=np.int64) + np.repeat(
+        start - offsets, length
+    )
+    return out
 
 
 def drift_line(

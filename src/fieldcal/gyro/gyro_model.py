@@ -10,14 +10,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..geometry.rotations import hat, quaternion_to_matrix
+from ..geometry.rotations import hat
 from .gyro_data import Segments, interval_bias
-from .integrate import (
-    cumulative_quaternions,
-    quaternion_multiply,
-    rotation_vector,
-    step_quaternions,
-)
+from .gyro_pass import JACOBIAN, NOISE, TURNS, Integrator, Pass
+from .integrate import rotation_vector
 
 Array = NDArray[np.float64]
 Method = Literal["rotations", "gravity"]
@@ -47,12 +43,6 @@ def right_jacobian_inv(phi: Array) -> Array:
     )
     K = hat(phi)
     out: Array = np.eye(3) + 0.5 * K + c[..., None, None] * (K @ K)
-    return out
-
-
-def conjugate(q: Array) -> Array:
-    out = q.copy()
-    out[..., 1:] *= -1.0
     return out
 
 
@@ -89,7 +79,11 @@ class SegmentModel:
         n_poses: int,
         observed: Array,
         noise_density: Array,
+        *,
+        share: tuple[SegmentModel, NDArray[np.int64]] | None = None,
     ) -> None:
+        """``share = (model, positions)``: these segments are those at ``positions`` of
+        ``model``'s, whose passes (and kept passes) serve this model too."""
         self.data = data
         self.method = method
         self.n = n_poses
@@ -103,6 +97,12 @@ class SegmentModel:
         else:
             self.observed = observed  # (N, 3) unit gravity directions
             self.basis_next = tangent_basis(observed[before + 1])  # (M, 3, 2)
+        if share is None:
+            self._integrator = Integrator(data, noise_density)
+            self._positions: NDArray[np.int64] | None = None
+        else:
+            self._integrator, self._positions = share[0]._integrator, share[1]
+        self._last: tuple[bytes, bool, bool, Evaluation] | None = None
 
     @property
     def n_params(self) -> int:
@@ -115,60 +115,84 @@ class SegmentModel:
         u = self.data.raw - bias
         return u, u @ M.T
 
-    def integrate(self, w: Array) -> tuple[Array, Array, Array]:
-        """Each segment's integrated rotation (M, 3, 3) of the rates ``w`` (J, 3), the rotation
-        before each interval relative to its segment's start (J, 3, 3) and the interval steps'
-        rotation vectors."""
-        D = self.data
-        phi = -w * D.dt[:, None]
-        c = cumulative_quaternions(step_quaternions(w * D.dt[:, None]))
-        prev = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], c[:-1]])
-        base = prev[D.first]  # (M, 4) product of everything before each segment
-        rel = quaternion_multiply(prev, conjugate(base[D.seg]))
-        total = quaternion_multiply(c[D.last], conjugate(base))
-        return quaternion_to_matrix(total), quaternion_to_matrix(rel), phi
-
     def path_length(self, x: Array) -> Array:
         """The angle (rad) each segment turns through, ``∫ |ω| dt``."""
         _, w = self.rates(x)
         out: Array = np.add.reduceat(np.linalg.norm(w, axis=1) * self.data.dt, self.data.first)
         return out
 
+    def residuals(self, x: Array) -> Array:
+        """The residuals (M, d) at ``x`` alone (the cost of a trial step): the segments' turns
+        only, no Jacobian, no noise."""
+        cached = self._cached(x, linear=None)
+        if cached is not None:
+            return cached.r
+        return self._residual(self._pass(x, TURNS).total)
+
     def evaluate(self, x: Array, *, with_jacobian: bool = True, linear: bool = False) -> Evaluation:
         """Residuals and Jacobians at ``x``; ``linear``: the rotation residual's Jacobian as at
-        a zero residual (for the observability check far from the optimum)."""
+        a zero residual (for the observability check far from the optimum). One pass over the
+        intervals (:class:`.gyro_pass.Integrator`, which keeps the last few); the last
+        evaluation is kept (the solver asks for the same point more than once)."""
+        cached = self._cached(x, linear, with_jacobian)
+        if cached is not None:
+            return cached
         D = self.data
         M = x[:9].reshape(3, 3)
-        u_corr, w = self.rates(x)
-        total, P, phi = self.integrate(w)
         m = len(D.first)
+        done = self._pass(x, JACOBIAN if with_jacobian else NOISE)
+        total, sums = done.total, done.sums
+        # cov_int = Σ_j dt_j P_{j−1}ᵀ (M Q Mᵀ) P_{j−1}: the integration noise of v per segment
+        cov_int = np.transpose(sums[:9].reshape(3, 3, m), (2, 0, 1))
+        r = self._residual(total)
         if self.method == "rotations":
-            r = rotation_vector(np.transpose(self.observed, (0, 2, 1)) @ total)
             H = -right_jacobian_inv(0.0 * r if linear else r)  # dr = H v
         else:
             u = self.observed
-            pred = np.einsum("mij,mj->mi", total, u[D.before])
-            r = np.einsum("mia,mi->ma", self.basis_next, pred)
             # ΔR̂ exp(−[v]) u ≈ ΔR̂ u + ΔR̂ [u]× v
             H = np.einsum("mia,mij,mjk->mak", self.basis_next, total, hat(u[D.before]))
-        # v = Σ_j dt_j P_{j−1}ᵀ J_r(φ_j) δω_j: the change of the segment's rotation (right)
-        Pt = np.transpose(P, (0, 2, 1))
-        Dj = D.dt[:, None, None] * (Pt @ right_jacobian(phi))
-        noise = D.dt[:, None, None] * (Pt @ (M @ self.Q @ M.T) @ P)
-        cov_int = np.add.reduceat(noise, D.first, axis=0)
         J_gain = np.zeros((m, self.d, 9))
         J_before = np.zeros((m, self.d, 3))
         J_after = np.zeros((m, self.d, 3))
         if with_jacobian:
-            dv_dM = np.einsum("jca,jb->jcab", Dj, u_corr).reshape(-1, 3, 9)
-            dM = np.add.reduceat(dv_dM, D.first, axis=0)
-            DM = Dj @ M
-            lam = D.lam[:, None, None]
+            # v = Σ_j dt_j P_{j−1}ᵀ J_r(φ_j) δω_j, δω_j = δM u_j − M δb(t_j): the change of the
+            # segment's rotation (right); Σ D_j u_jᵀ, Σ D_j (1 − λ_j) and Σ D_j λ_j per segment
+            dM = np.transpose(sums[9:36].reshape(3, 9, m), (2, 0, 1))
+            S0 = np.transpose(sums[36:45].reshape(3, 3, m), (2, 0, 1))
+            S1 = np.transpose(sums[45:54].reshape(3, 3, m), (2, 0, 1))
             # the biases of the poses before (b0) and after (b1) each segment
             J_gain = H @ dM
-            J_before = H @ -np.add.reduceat(DM * (1.0 - lam), D.first, axis=0)
-            J_after = H @ -np.add.reduceat(DM * lam, D.first, axis=0)
-        return Evaluation(r, J_gain, J_before, J_after, total, cov_int, H)
+            J_before = H @ -(S0 @ M)
+            J_after = H @ -(S1 @ M)
+        ev = Evaluation(r, J_gain, J_before, J_after, total, cov_int, H)
+        self._last = (x.tobytes(), linear, with_jacobian, ev)
+        return ev
+
+    def _pass(self, x: Array, level: int) -> Pass:
+        """The pass over this model's segments at ``x``."""
+        done = self._integrator.run(x, level)
+        return done if self._positions is None else done.pick(self._positions)
+
+    def _cached(
+        self, x: Array, linear: bool | None, with_jacobian: bool = False
+    ) -> Evaluation | None:
+        """The last evaluation if it was at ``x`` with what is asked (``linear=None``: the
+        residuals only, which every evaluation has)."""
+        if self._last is None:
+            return None
+        key, was_linear, had_jacobian, ev = self._last
+        if key != x.tobytes() or (linear is not None and linear != was_linear):
+            return None
+        return ev if had_jacobian or not with_jacobian else None
+
+    def _residual(self, total: Array) -> Array:
+        """The residuals (M, d) of the segments' integrated turns."""
+        if self.method == "rotations":
+            out: Array = rotation_vector(np.transpose(self.observed, (0, 2, 1)) @ total)
+            return out
+        pred = np.einsum("mij,mj->mi", total, self.observed[self.data.before])
+        out = np.einsum("mia,mi->ma", self.basis_next, pred)
+        return out
 
     def dense_jacobian(self, ev: Evaluation) -> Array:
         """The Jacobian (M, d, 9 + 3N) with every column (for checks against the dense

@@ -82,7 +82,9 @@ class SegmentNoise:
     ) -> None:
         self.model = model
         n, d = model.n, model.d
-        self.a = model.data.before  # (M,) the pose before each segment; the one after is a + 1
+        # (M,) the pose before each segment, the one after is a + 1: distinct poses (one
+        # segment from each), so sums per pose are plain indexed additions
+        self.a = model.data.before
         Ba, Bb = model.pose_blocks(ev)
         P = scale2 * pose.blocks if pose.estimated else pose.blocks
         F = np.zeros((n, 3, 0)) if pose.estimated else pose.factor
@@ -111,21 +113,21 @@ class SegmentNoise:
         n, g, a = self.model.n, self.n_shared, self.a
         Ua, Ub, Uz = self.Ua, self.Ub, self.Uz
         diag = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-        np.add.at(diag, a, _tt(Ua, Ua))
-        np.add.at(diag, a + 1, _tt(Ub, Ub))
+        diag[a] += _tt(Ua, Ua)
+        diag[a + 1] += _tt(Ub, Ub)
         lower = np.zeros((max(n - 1, 0), 3, 3))
-        np.add.at(lower, a, _tt(Ub, Ua))
+        lower[a] += _tt(Ub, Ua)
         border = np.zeros((n, 3, g))
-        np.add.at(border, a, _tt(Ua, Uz))
-        np.add.at(border, a + 1, _tt(Ub, Uz))
+        border[a] += _tt(Ua, Uz)
+        border[a + 1] += _tt(Ub, Uz)
         return Arrow(diag, lower, border, np.eye(g) + np.einsum("mdg,mdh->gh", Uz, Uz))
 
     def _latent_rhs(self, R: Array) -> tuple[Array, Array]:
         """``Uᵀ R`` for whitened segment rows ``R`` (M, d, c): per pose (N, 3, c) and shared."""
         n, a = self.model.n, self.a
         local = np.zeros((n, 3, R.shape[2]))
-        np.add.at(local, a, _tt(self.Ua, R))
-        np.add.at(local, a + 1, _tt(self.Ub, R))
+        local[a] += _tt(self.Ua, R)
+        local[a + 1] += _tt(self.Ub, R)
         return local, np.einsum("mdg,mdc->gc", self.Uz, R)
 
     def _latent_apply(self, local: Array, shared: Array) -> Array:

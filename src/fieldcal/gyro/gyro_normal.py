@@ -53,8 +53,8 @@ class NormalSystem:
     def _by_pose(self, before: Array, after: Array) -> Array:
         """Sum per pose of per-segment terms of the pose before and the pose after."""
         out = np.zeros((self.noise.model.n, *before.shape[1:]))
-        np.add.at(out, self.a, before)
-        np.add.at(out, self.a + 1, after)
+        out[self.a] += before
+        out[self.a + 1] += after
         return out
 
     def gradient(self) -> Array:
@@ -74,9 +74,9 @@ class NormalSystem:
         own = np.einsum("nii->ni", self._by_pose(_tt(Ja, Ja), _tt(Jb, Jb)) + self.prior_inv)
         # K[latent, b_i] from the latent unknowns of poses i−1, i, i+1 and the shared ones
         before = np.zeros((n, 3, 3))  # from the latent unknowns of pose i − 1
-        np.add.at(before, a + 1, _tt(Ua, Jb))
+        before[a + 1] += _tt(Ua, Jb)
         after = np.zeros((n, 3, 3))  # of pose i + 1
-        np.add.at(after, a, _tt(Ub, Ja))
+        after[a] += _tt(Ub, Ja)
         V = [before, self._by_pose(_tt(Ua, Ja), _tt(Ub, Jb)), after]
         Vz = self._by_pose(_tt(Uz, Ja), _tt(Uz, Jb))  # (N, G, 3)
         lat = noise.latent
@@ -113,7 +113,7 @@ class NormalSystem:
         diag[:, 3:, 3:] += np.eye(3)
         diag[:, np.arange(3), np.arange(3)] += damping[self.n_gain :].reshape(n, 3)
         lower = np.zeros((max(n - 1, 0), 6, 6))
-        np.add.at(lower, a, _tt(Rb, Ra))
+        lower[a] += _tt(Rb, Ra)
         border = self._by_pose(_tt(Ra, Rg), _tt(Rb, Rg))
         corner = np.einsum("mdg,mdh->gh", Rg, Rg)
         g = self.n_gain

@@ -45,8 +45,7 @@ def gauss_newton(
 
     def cost_at(y: Array) -> float:
         try:
-            ev = model.evaluate(y, with_jacobian=False)
-            c = noise.quadratic(ev.r) + prior_cost(prior_inv, y[9:].reshape(-1, 3), p)
+            c = noise.quadratic(model.residuals(y)) + prior_cost(prior_inv, y[9:].reshape(-1, 3), p)
         except (FloatingPointError, np.linalg.LinAlgError):
             return math.inf
         return c if math.isfinite(c) else math.inf
@@ -140,14 +139,17 @@ class Rounds:
             t, raw, rows, link, times, hold = self.motion
             picked = build_segments(t, raw, rows, link[list(key)], times, hold)
             full = self.full
+            # most of the segments: the full model's passes serve (one pass where two were)
+            share = (full, np.array(key, dtype=np.int64)) if 2 * len(key) >= self.m else None
             self.models[key] = SegmentModel(
-                picked, full.method, full.n, full.observed_poses, full.Q
+                picked, full.method, full.n, full.observed_poses, full.Q, share=share
             )
         return self.models[key]
 
     def used(self) -> list[int]:
         """The segments kept so far (positions in ``link``)."""
-        return [k for k in range(self.m) if k not in self.dropped]
+        out = set(self.dropped)  # (a set: linear in the segments however many are dropped)
+        return [k for k in range(self.m) if k not in out]
 
     def run(self, x: Array, scale2: float) -> tuple[Array, float]:
         """Continuation: the segments that turn least first (a gain error of ε puts a segment's
@@ -157,7 +159,8 @@ class Rounds:
         for stage in stages(path):
             if self.on_progress is not None:
                 self.on_progress(f"gyroscope: segment {len(stage)}/{self.m}")
-            chosen = [int(k) for k in stage if int(k) not in self.dropped]
+            out = set(self.dropped)
+            chosen = [int(k) for k in stage if int(k) not in out]
             x, scale2 = self.fit_set(chosen, x, scale2, len(stage) == self.m)
         return x, scale2
 
@@ -167,7 +170,7 @@ class Rounds:
         rough start does not condemn good segments."""
         d = self.full.d
         model = self.model_of(chosen)
-        ev = model.evaluate(x, with_jacobian=False)
+        ev = model.evaluate(x)  # with the Jacobian: the fit starts from the same point
         stat = segment_statistics(ev, self.pose.segment_covariance(model, ev, scale2), d)
         bulk = max(float(np.median(stat)) / float(chdtri(d, 0.5)), 1.0)
         p_seg = chdtrc(d, stat / bulk)
@@ -178,7 +181,8 @@ class Rounds:
             if len(chosen) - 1 < MIN_SEGMENTS:
                 break
             self.dropped.append(chosen[k])
-        return [k for k in chosen if k not in self.dropped]
+        out = set(self.dropped)
+        return [k for k in chosen if k not in out]
 
     def fit_set(
         self, chosen: list[int], x: Array, scale2: float, last: bool

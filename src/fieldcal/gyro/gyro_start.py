@@ -108,7 +108,7 @@ def start_gravity(data: Segments, p: Array, u: Array, guess: Array | None, n_pos
     for sign in (1.0, -1.0):
         for factor in np.geomspace(0.1, 10.0, 31):
             x[:9] = (np.eye(3) / (sign * c0 * factor)).ravel()
-            r = model.evaluate(x, with_jacobian=False).r
+            r = model.residuals(x)
             cost = float(np.sum(r * r))
             if cost < best_cost:
                 best, best_cost = x[:9].reshape(3, 3).copy(), cost

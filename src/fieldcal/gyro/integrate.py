@@ -36,12 +36,18 @@ from ..geometry.rotations import log_so3, quaternion_to_matrix
 
 __all__ = [
     "HOLDS",
+    "cumulative_columns",
     "cumulative_quaternions",
     "effective_time",
     "integrate",
     "interval_rates",
+    "matrix_columns",
+    "multiply_columns",
     "quaternion_multiply",
     "rotation_vector",
+    "runs",
+    "segment_turns",
+    "step_columns",
     "step_quaternions",
 ]
 
@@ -153,21 +159,97 @@ def step_quaternions(rotvec: Array) -> Array:
 def quaternion_multiply(p: Array, q: Array) -> Array:
     """Hamilton products ``p ⊗ q`` (broadcast over leading axes), scalar first:
     ``R(p ⊗ q) = R(p) R(q)``."""
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
+    out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 3] = pw * qz + px * qy - py * qx + pz * qw
+    return out
 
 
 #: Steps composed one after another within a block of the scan (vectorised across blocks).
 SCAN_BLOCK = 64
+
+
+def multiply_columns(p: Array, q: Array) -> Array:
+    """:func:`quaternion_multiply` for quaternions stored by component, ``(4, ...)`` (each
+    component a contiguous row: the products run at the memory's pace)."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[0] = pw * qw - px * qx - py * qy - pz * qz
+    out[1] = pw * qx + px * qw + py * qz - pz * qy
+    out[2] = pw * qy - px * qz + py * qw + pz * qx
+    out[3] = pw * qz + px * qy - py * qx + pz * qw
+    return out
+
+
+def cumulative_columns(steps: Array) -> Array:
+    """:func:`cumulative_quaternions` for step quaternions stored by component, ``(4, m)``."""
+    m = steps.shape[1]
+    if m > 2 * SCAN_BLOCK:
+        nb = -(-m // SCAN_BLOCK)
+        flat = np.empty((4, nb * SCAN_BLOCK))
+        flat[:, :m] = steps
+        flat[:, m:] = np.array([1.0, 0.0, 0.0, 0.0])[:, None]
+        # (4, position in block, block): each position's row contiguous across the blocks
+        blocks = np.ascontiguousarray(flat.reshape(4, nb, SCAN_BLOCK).transpose(0, 2, 1))
+        for j in range(1, SCAN_BLOCK):
+            blocks[:, j] = multiply_columns(blocks[:, j], blocks[:, j - 1])
+        before = cumulative_columns(blocks[:, -1, :-1])  # products of the whole blocks
+        blocks[:, :, 1:] = multiply_columns(blocks[:, :, 1:], before[:, None, :])
+        c = blocks.transpose(0, 2, 1).reshape(4, -1)[:, :m]
+    else:
+        c = np.array(steps, dtype=float)
+        d = 1
+        while d < m:
+            c[:, d:] = multiply_columns(c[:, d:], c[:, :-d])
+            d *= 2
+    # keep them unit (round-off of the products)
+    c /= np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
+    return c
+
+
+def step_columns(h: Array) -> Array:
+    """Step quaternions (4, J) of ``exp(−[h]×)`` for rotation vectors ``h = ω dt`` (3, J) by
+    component (:func:`step_quaternions`)."""
+    theta2 = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
+    theta = np.sqrt(theta2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    half_sinc = np.where(small, 0.5 - theta2 / 48.0, np.sin(0.5 * safe) / safe)
+    q = np.empty((4, h.shape[1]))
+    q[0] = np.cos(0.5 * theta)
+    q[1:] = -half_sinc * h
+    return q
+
+
+def matrix_columns(q: Array) -> Array:
+    """Rotation matrices (3, 3, J) of quaternions (4, J) by component, normalised first."""
+    q = q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    w, x, y, z = q
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    R = np.empty((3, 3, q.shape[1]))
+    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy)
+    R[1, 0], R[1, 1], R[1, 2] = 2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx)
+    R[2, 0], R[2, 1], R[2, 2] = 2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy)
+    return R
+
+
+def runs(first: NDArray[np.int64], last: NDArray[np.int64], size: int) -> list[slice]:
+    """Consecutive segments (``first``/``last`` their intervals) in runs of about ``size``
+    intervals, at least one segment each."""
+    ends = last + 1
+    out: list[slice] = []
+    s0, m = 0, len(first)
+    while s0 < m:
+        s1 = max(int(np.searchsorted(ends, int(first[s0]) + size, side="right")), s0 + 1)
+        out.append(slice(s0, s1))
+        s0 = s1
+    return out
 
 
 def cumulative_quaternions(steps: Array) -> Array:
@@ -176,28 +258,10 @@ def cumulative_quaternions(steps: Array) -> Array:
     A blocked scan, linear work: the steps in blocks of :data:`SCAN_BLOCK`, composed in order
     within every block at once (one vectorised product per position), the blocks' totals
     scanned (Hillis-Steele: after the pass with stride ``d`` each holds the product of the
-    ``2d`` totals ending at it), then each block carried by the product of those before it."""
-    c = np.array(steps, dtype=float)
-    m = len(c)
-    if m > 2 * SCAN_BLOCK:
-        nb = -(-m // SCAN_BLOCK)
-        flat = np.empty((nb * SCAN_BLOCK, 4))
-        flat[:m] = c
-        flat[m:] = (1.0, 0.0, 0.0, 0.0)
-        blocks = flat.reshape(nb, SCAN_BLOCK, 4)
-        for j in range(1, SCAN_BLOCK):
-            blocks[:, j] = quaternion_multiply(blocks[:, j], blocks[:, j - 1])
-        before = cumulative_quaternions(blocks[:-1, -1])  # products of the whole blocks
-        blocks[1:] = quaternion_multiply(blocks[1:], before[:, None, :])
-        c = blocks.reshape(-1, 4)[:m]
-    else:
-        d = 1
-        while d < m:
-            c[d:] = quaternion_multiply(c[d:], c[:-d])
-            d *= 2
-    # keep them unit (round-off of the products)
-    c /= np.linalg.norm(c, axis=-1, keepdims=True)
-    return c
+    ``2d`` totals ending at it), then each block carried by the product of those before it;
+    computed by component (:func:`cumulative_columns`)."""
+    out: Array = np.ascontiguousarray(cumulative_columns(np.asarray(steps, dtype=float).T).T)
+    return out
 
 
 @overload
@@ -261,6 +325,84 @@ def integrate(
     out = np.empty((len(dt) + 1, 3, 3))
     out[0] = np.eye(3)
     out[1:] = quaternion_to_matrix(c)
+    return out
+
+
+#: Intervals integrated at a time by :func:`segment_turns` (a few MB of work arrays).
+TURN_CHUNK = 1 << 16
+
+
+def segment_turns(
+    time: ArrayLike, omega: ArrayLike, spans: ArrayLike, *, hold: Hold = "midpoint"
+) -> Array:
+    """The rotation over each span of rows, as :func:`integrate` of that span alone, for every
+    span at once (a blocked scan over their intervals together, linear in them).
+
+    Parameters
+    ----------
+    time : (n,) array_like
+        Seconds, non-decreasing within each span (bursts spread within it,
+        :func:`effective_time`).
+    omega : (n, 3) array_like
+        Body-frame angular rate in rad/s.
+    spans : (M, 2) array_like of int
+        The first and the last row (inclusive) of each span.
+    hold : {"midpoint", "previous"}
+        How the rate over each interval is taken (module docstring).
+
+    Returns
+    -------
+    (M, 3, 3) array
+        ``R(t_last) R(t_first)ᵀ`` of each span (the identity for a span of one row).
+
+    Raises
+    ------
+    InputError
+        For a span outside the rows, or time going backwards within one.
+    """
+    t_all = np.asarray(time, dtype=float)
+    w_all = np.asarray(omega, dtype=float)
+    bounds = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
+    if w_all.ndim != 2 or w_all.shape[1] != 3 or t_all.shape != (len(w_all),):
+        raise InputError(f"omega must have shape (n, 3) with n the rows of time, got {w_all.shape}")
+    if hold not in HOLDS:
+        raise InputError(f"hold must be one of {', '.join(HOLDS)}; got {hold!r}")
+    first, last = bounds[:, 0], bounds[:, 1]
+    if np.any(first < 0) or np.any(last >= len(t_all)) or np.any(last < first):
+        raise InputError(f"spans must be (first, last) rows within the {len(t_all)} given")
+    out = np.empty((len(bounds), 3, 3))
+    steps = last - first  # intervals per span
+    ends = np.cumsum(steps)
+    for run in runs(ends - steps, ends - 1, TURN_CHUNK):
+        out[run] = _turns(t_all, w_all, first[run], last[run], hold)
+    return out
+
+
+def _turns(
+    t_all: Array, w_all: Array, first: NDArray[np.int64], last: NDArray[np.int64], hold: Hold
+) -> Array:
+    """:func:`segment_turns` of some spans (their intervals together)."""
+    length = last - first + 1
+    start = np.cumsum(length) - length  # each span's first position among the rows taken
+    idx = np.repeat(first - start, length) + np.arange(int(length.sum()))
+    t, w = t_all[idx], w_all[idx]
+    inner = np.ones(len(t) - 1, dtype=bool)  # the pairs of rows within one span
+    inner[(start + length - 1)[:-1]] = False
+    step = np.diff(t)
+    for k in np.flatnonzero(np.add.reduceat(inner & (step <= 0), start)[length > 1] > 0):
+        span = slice(int(start[length > 1][k]), int((start + length)[length > 1][k]))
+        t[span] = effective_time(t[span])  # bursts spread (or time going backwards refused)
+    step = np.diff(t)[inner]
+    rate = 0.5 * (w[1:] + w[:-1]) if hold == "midpoint" else w[:-1]
+    cq = cumulative_columns(step_columns((rate[inner] * step[:, None]).T))
+    prev = np.empty((4, cq.shape[1] + 1))
+    prev[:, 0] = (1.0, 0.0, 0.0, 0.0)
+    prev[:, 1:] = cq
+    ends = np.cumsum(length - 1)  # products before each span's first interval and at its end
+    base = prev[:, ends - (length - 1)]
+    base[1:] *= -1.0
+    turn = matrix_columns(multiply_columns(prev[:, ends], base))
+    out: Array = np.moveaxis(turn, 2, 0)
     return out
 
 

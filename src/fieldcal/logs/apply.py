@@ -7,12 +7,13 @@ an error or Ctrl-C half-way leaves the previous output untouched and no fragment
 - Text in, text out is streamed ``CHUNK_ROWS`` lines at a time, so files larger than memory
   work: every input line is copied byte for byte (comment and blank lines, a preamble above
   the header, the line endings, a byte-order mark) and the calibrated values follow each data
-  line (and the names the header line, a ``#`` header included). Each chunk is vectorised:
-  numpy's C parser reads the sensors' fields, the calibration runs on all rows at once and the
-  values are formatted in one pass (by pyarrow, in bulk, for chunks of :data:`ARROW_MIN_ROWS`
-  rows or more; the same text as ``repr``); a chunk numpy would not read exactly as the csv
-  module (quotes, mixed line endings, a bad value) is done line by line, which names the
-  problem.
+  line (and the names the header line, a ``#`` header included). Each chunk is vectorised: a
+  chunk of :data:`ARROW_MIN_ROWS` data lines or more with nothing unusual is done by pyarrow
+  alone (it reads the sensors' fields, formats the values as ``repr`` would and joins them to
+  the lines, in bulk); otherwise numpy's C parser reads the fields, the calibration runs on
+  all rows at once and the values are formatted in one pass (pyarrow or ``repr``); a chunk
+  numpy would not read exactly as the csv module (quotes, mixed line endings, a bad value) is
+  done line by line, which names the problem.
 - Otherwise the table is read in its own types and written whole: Parquet keeps its schema
   (column types and metadata), NPZ each array as it was (dtype and shape; an ``(n, 3)`` sensor
   array gets an ``(n, 3)`` ``<name>_cal``), and columns written as text keep their full
@@ -38,18 +39,18 @@ import re
 import stat
 import time
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._files import replacing, same_file
 from ..errors import InputError
-from .arrow_parser import pyarrow_module
+from .arrow_parser import float_column, pyarrow_module
 from .columns import explicit_columns, recognise_columns
 from .readers import Table, npz_table, read_table, to_float
 from .rosbag import is_bag, read_bag
@@ -425,19 +426,138 @@ def _apply_text(
         temp_name = thermal.find(str(src), header)
         index = None if temp_name is None else header.index(temp_name)
         job = _Text(cal, src, delimiter, found.decimal, sep, where, used, thermal, index, temp_name)
-        lines = itertools.chain(head[found.start :], handle)
         rows_done, last = 0, time.monotonic()
         chars = sum(len(line) for line in head[: found.start])
-        while chunk := list(itertools.islice(lines, chunk_rows)):
-            text, rows = _chunk(job, chunk, rows_done)
-            out.write(text)
+        for block in _blocks(handle, head[found.start :], chunk_rows):
+            bulk = _arrow_block(job, block)
+            if bulk is not None:  # written as bytes, the text layer flushed first
+                out.flush()
+                out.buffer.write(bulk[0])
+                rows = bulk[1]
+            else:
+                text, rows = _chunk(job, _LINE.findall(block), rows_done)
+                out.write(text)
             rows_done += rows
-            chars += sum(map(len, chunk))
+            chars += len(block)
             now = time.monotonic()
             if on_progress is not None and now - last >= PROGRESS_SECONDS:
                 last = now
                 on_progress(f"apply: {rows_done:,} rows ({min(100 * chars / size, 100):.0f} %)")
     return _reported(used, temp_name)
+
+
+#: A line with its ending as the file reads it with ``newline=""`` (``\n``, ``\r\n``, ``\r``).
+_LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")
+
+
+def _blocks(handle: TextIO, first: list[str], chunk_rows: int) -> Iterator[str]:
+    """The text after the header in blocks of whole lines, about ``chunk_rows`` lines each
+    (read by size: the first lines' mean length), the lines already read first."""
+    size = max(chunk_rows * max(sum(map(len, first)) // max(len(first), 1), 1), 1)
+    pending = "".join(first)
+    while True:
+        more = handle.read(max(size - len(pending), 1)) if len(pending) < size else ""
+        text = pending + more
+        pending = ""
+        if not text:
+            return
+        if more and not text.endswith("\n"):
+            text += handle.readline()  # the line cut by the size, whole
+        yield text
+
+
+def _arrow_block(job: _Text, block: str) -> tuple[bytes, int] | None:
+    """The output of a block of lines as bytes, the lines parsed, their values formatted and
+    the lines joined with them by pyarrow, and its number of rows; None unless every line is
+    a data line of the header's fields of numbers pyarrow reads as numpy's parser does (no
+    quote, comment, blank line, ``(``; one kind of line ending; a decimal point; at least
+    :data:`ARROW_MIN_ROWS` lines; pyarrow installed): :func:`_chunk` does the rest."""
+    if job.delimiter is None or job.decimal != "." or any(c in block for c in '"#('):
+        return None
+    n_lf, n_cr = block.count("\n"), block.count("\r")
+    eol = "\n" if n_cr == 0 else "\r\n" if n_cr == block.count("\r\n") == n_lf else None
+    if eol is None or n_lf + 1 < ARROW_MIN_ROWS or not block.isascii():
+        return None
+    pa, pc, pa_csv = pyarrow_module(), pyarrow_module("pyarrow.compute"), _csv_module()
+    if pa is None or pc is None or pa_csv is None or not _formats_as_repr():
+        return None
+    ended = block.endswith(eol)
+    raw = block.encode("ascii") + (b"" if ended else eol.encode("ascii"))
+    idx = [i for cols in job.where.values() for i in cols]
+    if job.temp_index is not None:  # the rows' temperatures, last
+        idx.append(job.temp_index)
+    numbers = _arrow_numbers(pa, pa_csv, raw, job, idx)
+    if numbers is None:
+        return None
+    lines = _line_array(pa, pc, raw, len(eol))
+    if lines is None or len(lines) != len(numbers):
+        return None  # a blank line pyarrow skipped
+    texts = _arrow_texts(pa, pc, _fixed(job, numbers))
+    # (scalars from buffers: pyarrow's own would import pandas)
+    empty, sep, ending = _strings(pa, ["", job.sep, eol])
+    joined = pc.binary_join_element_wise(lines, *texts, sep)
+    joined = pc.binary_join_element_wise(joined, empty, ending)  # the line ending after
+    _, offsets, data = joined.buffers()
+    end = int(np.frombuffer(offsets, dtype=np.int32, count=len(joined) + 1)[-1])
+    out = memoryview(data)[: end if ended else end - len(eol)]
+    return bytes(out), len(numbers)
+
+
+def _csv_module() -> ModuleType | None:
+    return pyarrow_module("pyarrow.csv")
+
+
+def _arrow_numbers(pa: Any, pa_csv: Any, raw: bytes, job: _Text, idx: list[int]) -> Array | None:
+    """The fields ``idx`` of every line of ``raw`` (rows x fields), empty fields NaN; None when
+    pyarrow refuses a line (a field it does not read as a number, another count of fields)."""
+    first = raw[: raw.index(b"\n")].decode("ascii").rstrip("\r")
+    width = max(1 + max(idx), len(_split([first], job.delimiter)[0]))
+    names = [f"f{i}" for i in range(width)]
+    try:
+        table = pa_csv.read_csv(
+            pa.BufferReader(raw),
+            read_options=pa_csv.ReadOptions(column_names=names),
+            parse_options=pa_csv.ParseOptions(
+                delimiter=job.delimiter, quote_char=False, double_quote=False,
+                newlines_in_values=False, ignore_empty_lines=False,
+            ),
+            convert_options=pa_csv.ConvertOptions(
+                include_columns=[names[i] for i in idx],
+                column_types={names[i]: pa.float64() for i in idx},
+                null_values=[""],
+                strings_can_be_null=False,
+            ),
+        )  # fmt: skip
+    except (pa.ArrowException, ValueError):
+        return None
+    out = np.empty((table.num_rows, len(idx)))
+    for k, i in enumerate(idx):
+        out[:, k] = float_column(table.column(names[i]))
+    return out
+
+
+def _line_array(pa: Any, pc: Any, raw: bytes, eol: int) -> Any:
+    """The lines of ``raw`` (each ended) as a pyarrow string array without their endings."""
+    ends = np.flatnonzero(np.frombuffer(raw, dtype=np.uint8) == 10) + 1
+    if len(raw) >= 2**31:
+        return None
+    offsets = np.zeros(len(ends) + 1, dtype=np.int32)
+    offsets[1:] = ends
+    lines = pa.Array.from_buffers(
+        pa.string(), len(ends), [None, pa.py_buffer(offsets), pa.py_buffer(raw)]
+    )
+    return pc.utf8_slice_codeunits(lines, 0, -eol)
+
+
+def _fixed(job: _Text, numbers: Array) -> list[Array]:
+    """The calibrated columns of the parsed fields (the sensors', then the temperature)."""
+    fixed: list[Array] = []
+    k = 0
+    t = job.thermal.values(numbers[:, -1] if job.temp_index is not None else None, job.temp_name)
+    for sensor, cols in job.where.items():
+        fixed += list(_correct(job.cal, sensor, numbers[:, k : k + len(cols)], t).T)
+        k += len(cols)
+    return fixed
 
 
 def _chunk(job: _Text, chunk: list[str], first_row: int) -> tuple[str, int]:
@@ -492,12 +612,7 @@ def _fast_chunk(job: _Text, joined: str) -> tuple[str, int] | None:
     )
     if numbers is None or len(numbers) != len(data):
         return None
-    fixed: list[Array] = []
-    k = 0
-    t = job.thermal.values(numbers[:, -1] if job.temp_index is not None else None, job.temp_name)
-    for sensor, cols in job.where.items():
-        fixed += list(_correct(job.cal, sensor, numbers[:, k : k + len(cols)], t).T)
-        k += len(cols)
+    fixed = _fixed(job, numbers)
     tails = _bulk_tails(fixed, job.sep, job.decimal) if len(data) >= ARROW_MIN_ROWS else None
     if tails is None:
         values = [column.tolist() for column in fixed]
@@ -547,6 +662,17 @@ def _formats_as_repr() -> bool:
 
 
 def _arrow_tails(pa: Any, pc: Any, columns: list[Array], sep: str, decimal: str) -> list[str]:
+    # (an empty first piece: a leading separator)
+    empty, separator = _strings(pa, ["", sep])
+    joined = pc.binary_join_element_wise(empty, *_arrow_texts(pa, pc, columns), separator)
+    if decimal == ",":
+        joined = pc.replace_substring(joined, ".", ",")
+    tails: list[str] = joined.to_pylist()
+    return tails
+
+
+def _arrow_texts(pa: Any, pc: Any, columns: list[Array]) -> list[Any]:
+    """Each column's values as ``repr`` writes them, a pyarrow string array each."""
     texts = []
     for column in columns:
         column = np.ascontiguousarray(column, dtype=np.float64)
@@ -565,12 +691,7 @@ def _arrow_tails(pa: Any, pc: Any, columns: list[Array], sep: str, decimal: str)
             again = _strings(pa, list(map(repr, column[where].tolist())))
             text = pc.replace_with_mask(text, odd, again)
         texts.append(text)
-    # (an empty first piece: a leading separator)
-    joined = pc.binary_join_element_wise(_strings(pa, [""])[0], *texts, _strings(pa, [sep])[0])
-    if decimal == ",":
-        joined = pc.replace_substring(joined, ".", ",")
-    tails: list[str] = joined.to_pylist()
-    return tails
+    return texts
 
 
 def _strings(pa: ModuleType, texts: list[str]) -> Any:

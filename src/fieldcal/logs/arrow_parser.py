@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["arrow_parser", "pyarrow_module"]
+__all__ = ["arrow_parser", "float_column", "pyarrow_module"]
 
 Array = NDArray[np.float64]
 
@@ -89,6 +89,23 @@ def arrow_parser(
         return numbers, table.num_rows, cells
 
     return parsed
+
+
+def float_column(column: Any) -> Array:
+    """A pyarrow float64 column (chunked) as one numpy array, nulls as NaN (read from its
+    buffers, :func:`_doubles`).
+
+    Parameters
+    ----------
+    column : pyarrow.ChunkedArray of float64
+
+    Returns
+    -------
+    (n,) ndarray of float64
+    """
+    chunks = [_doubles(chunk) for chunk in column.chunks]
+    out: Array = np.concatenate(chunks) if chunks else np.empty(0)
+    return out
 
 
 def _doubles(chunk: Any) -> Array:

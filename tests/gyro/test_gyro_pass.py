@@ -1,0 +1,139 @@
+"""The pass over the motion's intervals (chunked, by component, kept) against the plain
+interval-by-interval computation it replaces: each segment's turn, integration noise and the
+sums of its Jacobian; the same whatever the chunks; kept passes and shared models equal fresh
+ones; a model's Jacobian against finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fieldcal.geometry.rotations import exp_so3
+from fieldcal.gyro.gyro_data import build_segments, check_rows, pose_statistics
+from fieldcal.gyro.gyro_model import SegmentModel, right_jacobian
+from fieldcal.gyro.gyro_pass import JACOBIAN, NOISE, TURNS, Integrator, chunks_of
+from fieldcal.simulation.continuous import simulate_continuous
+
+# round-off of a few hundred composed steps, far below any statistical scale of the fit
+RTOL = 1e-10
+
+
+@pytest.fixture(scope="module")
+def case():
+    sim = simulate_continuous("paper", seed=3, n_poses=7)
+    c = sim.columns
+    t, g = c["t"], np.column_stack([c["gx"], c["gy"], c["gz"]])
+    rows = check_rows(sim.segments, len(t))
+    means, times, _, _, _, Q = pose_statistics(t, g, rows)
+    data = build_segments(t, g, rows, np.arange(len(rows) - 1), times, "midpoint")
+    rng = np.random.default_rng(4)
+    M = np.eye(3) + 0.02 * rng.normal(size=(3, 3))
+    x = np.concatenate([M.ravel(), (means + 1e-3 * rng.normal(size=means.shape)).ravel()])
+    return sim, data, Q, x
+
+
+def _close(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape
+    assert np.max(np.abs(a - b)) <= RTOL * np.max(np.abs(b)), np.max(np.abs(a - b))
+
+
+def _reference(data, Q, x):
+    """Interval by interval, with rotation matrices (Rodrigues), as the derivation reads."""
+    M = x[:9].reshape(3, 3)
+    b = x[9:].reshape(-1, 3)
+    A = M @ Q @ M.T
+    m = len(data.first)
+    total = np.empty((m, 3, 3))
+    sums = np.zeros((54, m))
+    for k in range(m):
+        P = np.eye(3)
+        i = data.before[k]
+        for j in range(data.first[k], data.last[k] + 1):
+            lam, dt = data.lam[j], data.dt[j]
+            u = data.raw[j] - ((1 - lam) * b[i] + lam * b[i + 1])
+            phi = -(M @ u) * dt
+            D = dt * P.T @ right_jacobian(phi)
+            sums[:9, k] += (dt * P.T @ A @ P).ravel()
+            sums[9:36, k] += np.einsum("ca,b->cab", D, u).ravel()
+            sums[36:45, k] += (D * (1 - lam)).ravel()
+            sums[45:54, k] += (D * lam).ravel()
+            P = exp_so3(phi) @ P
+        total[k] = P
+    return total, sums
+
+
+@pytest.mark.parametrize("sizes", [None, (300, 70), (1, 1)])
+def test_pass_is_the_interval_by_interval_computation(case, sizes):
+    _, data, Q, x = case
+    integrator = Integrator(data, Q)
+    if sizes is not None:  # many chunks and parts: every boundary handled
+        integrator._chunks = chunks_of(data, *sizes)
+        assert len(integrator._chunks) > 1
+    done = integrator.run(x, JACOBIAN)
+    total, sums = _reference(data, Q, x)
+    _close(done.total, total)
+    _close(done.sums[:9], sums[:9])
+    _close(done.sums[9:36], sums[9:36])
+    _close(done.sums[36:], sums[36:])
+
+
+def test_kept_passes_and_the_scan_of_a_trial_point_give_the_same_numbers(case):
+    _, data, Q, x = case
+    fresh = Integrator(data, Q).run(x, JACOBIAN)
+    integrator = Integrator(data, Q)
+    turns = integrator.run(x, TURNS)  # a trial point: its scan kept
+    np.testing.assert_array_equal(turns.total, fresh.total)
+    full = integrator.run(x, JACOBIAN)  # the scan reused
+    np.testing.assert_array_equal(full.sums, fresh.sums)
+    assert integrator.run(x, NOISE) is full  # a kept pass serves any lower level
+    y = x.copy()
+    y[0] += 1e-3
+    assert integrator.run(y, TURNS) is not full
+
+
+def test_a_model_sharing_the_full_models_passes_equals_its_own(case):
+    sim, data, Q, x = case
+    rows = check_rows(sim.segments, len(sim.columns["t"]))
+    c = sim.columns
+    t, g = c["t"], np.column_stack([c["gx"], c["gy"], c["gz"]])
+    times = pose_statistics(t, g, rows)[1]
+    R = np.array(sim.session.truth.rotations)
+    full = SegmentModel(data, "rotations", len(rows), R, Q)
+    keep = np.array([0, 1, 3, 4, 5])
+    picked = build_segments(t, g, rows, keep, times, "midpoint")
+    own = SegmentModel(picked, "rotations", len(rows), R, Q)
+    shared = SegmentModel(picked, "rotations", len(rows), R, Q, share=(full, keep))
+    a, b = own.evaluate(x), shared.evaluate(x)
+    for name in ("r", "J_gain", "J_before", "J_after", "total", "cov_int"):
+        _close(getattr(b, name), getattr(a, name))
+    _close(shared.residuals(x + 1e-4), own.residuals(x + 1e-4))
+
+
+@pytest.mark.parametrize("method", ["rotations", "gravity"])
+def test_the_jacobian_is_the_residuals_derivative(case, method):
+    sim, data, Q, x = case
+    R = np.array(sim.session.truth.rotations)
+    observed = R if method == "rotations" else R[:, :, 2]  # the down direction in the body
+    model = SegmentModel(data, method, len(R), observed, Q)
+    ev = model.evaluate(x)
+    J = model.dense_jacobian(ev).reshape(len(ev.r) * model.d, -1)
+    step = 1e-6
+    for col in [0, 4, 8, 9, 13, len(x) - 1]:
+        e = np.zeros_like(x)
+        e[col] = step
+        numeric = (model.residuals(x + e) - model.residuals(x - e)).ravel() / (2 * step)
+        scale = np.max(np.abs(J[:, col])) + 1e-12
+        assert np.max(np.abs(numeric - J[:, col])) <= 1e-5 * scale, col
+
+
+def test_the_integration_noise_is_the_rotated_noise_density(case):
+    _, data, Q, x = case
+    done = Integrator(data, Q).run(x, NOISE)
+    cov = np.transpose(done.sums[:9].reshape(3, 3, -1), (2, 0, 1))
+    # symmetric, positive definite, and its trace the density's times the segment's duration
+    _close(cov, np.transpose(cov, (0, 2, 1)))
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+    M = x[:9].reshape(3, 3)
+    seconds = np.add.reduceat(data.dt, data.first)
+    _close(np.trace(cov, axis1=1, axis2=2), np.trace(M @ Q @ M.T) * seconds)
