@@ -9,9 +9,9 @@ its own λ, ν, acceptance, stopping tests and iteration count, exactly as
 following rounds. The stacked model (:mod:`.stacked`) and the reductions here are computed
 with the same numpy and LAPACK calls per problem as the single solver's, and the scalar
 decisions with the same IEEE operations (λ's update with Python's ``pow``, which numpy's
-``power`` does not always equal), so each problem's result is the single solver's (bit for bit with OpenBLAS on x86-64; a BLAS
-that rounds a batched product differently may differ in the last bits, which
-``tests/likelihood/test_lockstep.py`` allows to 1e-9 relative).
+``power`` does not always equal), so each problem's result is the single solver's: bit for
+bit with OpenBLAS on x86-64; a BLAS that rounds a batched product differently may differ in
+the last bits, which ``tests/likelihood/test_lockstep.py`` allows (1e-9 relative).
 
 A problem whose pose blocks or reduced system are singular gets the ``LinAlgError`` the single
 solver would raise, in its place in the answer; the others go on.
