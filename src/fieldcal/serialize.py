@@ -53,7 +53,12 @@ def _number(value: float | np.floating[Any]) -> float | str:
 def encode(value: object) -> Any:
     """A JSON-ready form of ``value``: dataclasses as dicts of their stored fields (plus their
     ``JSON_DERIVED`` values), arrays as nested lists, NaN/inf as strings."""
-    if value is None or isinstance(value, str):
+    kind = type(value)
+    if kind is float:  # the common leaf first: a document holds about a thousand numbers
+        return value if math.isfinite(value) else _number(value)  # type: ignore[arg-type]
+    if value is None or kind is str or kind is int or kind is bool:
+        return value
+    if isinstance(value, str):
         return value
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         out: dict[str, object] = {}
@@ -64,6 +69,8 @@ def encode(value: object) -> Any:
             out[name] = encode(getattr(value, name))
         return out
     if isinstance(value, np.ndarray):
+        if value.dtype.kind == "f" and np.isfinite(value).all():
+            return value.tolist()  # Python floats already: no walk over the entries
         if value.dtype.kind in "fc":
             return encode(value.tolist())
         return value.tolist()
