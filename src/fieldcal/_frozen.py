@@ -12,7 +12,15 @@ __all__ = ["ArrayDataclass", "frozen_array"]
 
 
 def frozen_array(value: ArrayLike) -> NDArray[np.float64]:
-    """A float copy of ``value`` that cannot be written to."""
+    """A float copy of ``value`` that cannot be written to (``value`` itself when it is one
+    already: a result rebuilt with a field replaced shares its other arrays)."""
+    if (
+        type(value) is np.ndarray
+        and value.dtype == np.float64
+        and not value.flags.writeable
+        and value.base is None
+    ):
+        return value
     array = np.array(value, dtype=float)
     array.setflags(write=False)
     return array

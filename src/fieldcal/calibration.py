@@ -103,10 +103,7 @@ class ParameterCovariance(ArrayDataclass):
     @functools.cached_property
     def _positions(self) -> dict[str, int]:
         """Name to position (the first, should a name repeat, as ``tuple.index`` gives)."""
-        positions: dict[str, int] = {}
-        for i, name in enumerate(self.names):
-            positions.setdefault(name, i)
-        return positions
+        return {name: i for i, name in reversed(list(enumerate(self.names)))}
 
     def std(self, name: str) -> float:
         """Standard error of one named parameter."""
@@ -115,17 +112,15 @@ class ParameterCovariance(ArrayDataclass):
 
     def stds(self, names: list[str]) -> Array:
         """Standard errors of several parameters (0 for names not present)."""
-        diag = np.maximum(np.diag(self.matrix), 0.0)
-        where = {n: i for i, n in enumerate(self.names)}
+        diag, where = np.maximum(np.diag(self.matrix), 0.0), self._positions
         return np.array([np.sqrt(diag[where[n]]) if n in where else 0.0 for n in names])
 
     def scaled(self, factors: Mapping[str, float]) -> ParameterCovariance:
         """Rescale parameters whose name starts with a key of ``factors`` (e.g. "accel.gain")."""
         s = np.ones(len(self.names))
-        for i, name in enumerate(self.names):
-            for prefix, factor in factors.items():
-                if name.startswith(prefix):
-                    s[i] = factor
+        pairs = zip(_prefixed(self.names, tuple(factors)), factors.values(), strict=True)
+        for where, factor in pairs:  # the last prefix that matches a name sets its factor
+            s[where] = factor
         return ParameterCovariance(self.names, self.matrix * np.outer(s, s))
 
     def transformed(self, T: Array) -> ParameterCovariance:
@@ -784,7 +779,7 @@ class Calibration(ArrayDataclass):
         if (relative < 0) == bool(mirrored):
             return self
         Ka = self.accel.gain
-        accel_frame = np.allclose(Ka, Ka.T, rtol=0, atol=1e-9 * np.abs(Ka).max())
+        accel_frame = bool(np.abs(Ka - Ka.T).max() <= 1e-9 * np.abs(Ka).max())  # symmetric
         name = "mag" if accel_frame else "accel"
         accel, mag = self.accel, self.mag
         if name == "mag":
@@ -963,21 +958,29 @@ CONVENTIONS = {
 _SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s in (*SENSORS, GYRO)}
 
 
+@functools.lru_cache(maxsize=256)
+def _prefixed(names: tuple[str, ...], prefixes: tuple[str, ...]) -> list[list[int]]:
+    """Per prefix, the positions of the names starting with it (found once per set of names)."""
+    return [[i for i, n in enumerate(names) if n.startswith(p)] for p in prefixes]
+
+
+@functools.lru_cache(maxsize=256)
+def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """One sensor's gain, bias and temperature names (prefix dropped) and positions."""
+    first = {n: i for i, n in reversed(list(enumerate(names)))}
+    chosen = [n for n in _SENSOR_NAMES[sensor] if n in first]
+    chosen += [n for n in names if n.startswith(f"{sensor}.temp[")]
+    return tuple(n.split(".", 1)[1] for n in chosen), tuple(first[n] for n in chosen)
+
+
 def _sensor_block(
     covariance: ParameterCovariance | None, sensor: str
 ) -> ParameterCovariance | None:
     """The gain and bias block of one sensor, names without the sensor prefix."""
-    if covariance is None:
+    names, idx = ((), ()) if covariance is None else _block_layout(covariance.names, sensor)
+    if not names or covariance is None:
         return None
-    positions = covariance._positions
-    names = [n for n in _SENSOR_NAMES[sensor] if n in positions]
-    names += [n for n in covariance.names if n.startswith(f"{sensor}.temp[")]
-    if not names:
-        return None
-    idx = [positions[n] for n in names]
-    return ParameterCovariance(
-        tuple(n.split(".", 1)[1] for n in names), covariance.matrix[np.ix_(idx, idx)]
-    )
+    return ParameterCovariance(names, covariance.matrix[np.ix_(idx, idx)])
 
 
 def _default_units(cal: Calibration) -> dict[str, str]:

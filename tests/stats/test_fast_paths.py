@@ -351,12 +351,28 @@ def test_order_statistics_by_partitions_equal_those_of_the_key_sort(seed, quantu
     expected = _key_sort_statistics(x, counts, ranks)
     found = trimming.unsteady(x.copy(), counts, np.empty((4, x.shape[1])))
     np.testing.assert_array_equal(found.medians, 0.5 * (expected[1] + expected[2]))
-    # the MADs: the same statistics of the absolute deviations from those medians
-    absolute = np.abs(found.deviations)
+    # the MADs: the same statistics of the absolute deviations from those medians, read by
+    # partitions (large poses) or from each pose's sorted readings (window search), bit for bit
     starts = np.cumsum(counts) - counts
-    mads = trimming._mads(found.deviations, starts, counts, ranks[:, 1:3])
-    middle = _key_sort_statistics(absolute, counts, ranks[:, 1:3])
-    np.testing.assert_array_equal(mads, 0.5 * (middle[0] + middle[1]))
+    runs = list(trimming._small(starts, counts))
+    ordered = np.concatenate(
+        [
+            np.sort(x[:, s : s + n], axis=1)
+            for s, n in zip(starts, counts, strict=True)
+            if n < trimming.SELECT
+        ],
+        axis=1,
+    )
+    deviations = x - np.repeat(found.medians, counts, axis=1)
+    mads = trimming._mads(deviations, starts, counts, ranks[:, 1:3], ordered, runs, found.medians)
+    plain = np.stack(
+        [
+            np.median(np.abs(deviations[:, s : s + n]), axis=1)
+            for s, n in zip(starts, counts, strict=True)
+        ],
+        axis=1,
+    )
+    np.testing.assert_array_equal(mads, plain)
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import fieldcal
+from fieldcal.trust.pose_noise import solve_pose_variance
 
 
 def _single_shots(seed, n_poses, sigma_a, sigma_m):
@@ -67,3 +68,17 @@ def test_fixed_point_is_generic_over_methods():
     assert greedy.accel.noise_cov[0, 0] == pytest.approx(ml.accel.noise_cov[0, 0], rel=1e-5)
     assert greedy.mag.noise_cov[0, 0] == pytest.approx(ml.mag.noise_cov[0, 0], rel=1e-5)
     assert greedy.dip_deg == pytest.approx(ml.dip_deg, abs=3 * ml.dip_std_deg)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_one_sample_per_pose_variance_is_the_closed_form_newton_reaches(seed):
+    """With no within-pose scatter (λ = 0) J(q²) = Σ proj / q²: the root in closed form, the
+    number Newton's method converges to when λ is a tiny positive amount."""
+    rng = np.random.default_rng(seed)
+    proj = rng.chisquare(1, size=(24, 3)) * 1e-6
+    target = float(rng.uniform(20, 60))
+    closed = solve_pose_variance(proj, np.zeros_like(proj), target)
+    assert closed == pytest.approx(proj.sum() / target, rel=1e-15)
+    newton = solve_pose_variance(proj, np.full_like(proj, 1e-12 * closed), target)
+    assert closed == pytest.approx(newton, rel=1e-9)
+    assert solve_pose_variance(np.zeros_like(proj), np.zeros_like(proj), target) == 0.0

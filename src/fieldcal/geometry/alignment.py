@@ -66,6 +66,5 @@ def constant_angle(
     Q = orthogonal_polar_factor(cand[:, :9].reshape(-1, 3, 3))
     proj = np.einsum("ni,kij,nj->kn", u, Q, v)
     c = proj @ w / np.sum(w)
-    resid = ((proj - c[:, None]) ** 2) @ w
-    best = int(np.argmin(resid))
+    best = 0 if len(phi) == 1 else int(np.argmin(((proj - c[:, None]) ** 2) @ w))
     return Q[best], float(np.clip(c[best], -1.0, 1.0))

@@ -315,6 +315,8 @@ _SPHERE_PULL = np.zeros((5, 10))
 _SPHERE_PULL[0, [0, 1]] = (1e-4, -1e-4)
 _SPHERE_PULL[1, [1, 2]] = (1e-4, -1e-4)
 _SPHERE_PULL[2, 3] = _SPHERE_PULL[3, 4] = _SPHERE_PULL[4, 5] = 1e-4
+#: The factors of the quadratic columns ``x_i x_j``: the squares, then the cross terms.
+_LEFT, _RIGHT = np.array([0, 1, 2, 0, 0, 1]), np.array([0, 1, 2, 1, 2, 2])
 
 
 def spd_sqrt(M: Array) -> tuple[Array, Array]:
@@ -359,17 +361,22 @@ def family_fits(
     gains (S, 3, 3), centres (S, 3) and which fits are ellipsoids (entries of the others are
     meaningless). One call of each LAPACK routine for all the sets."""
     z, c0, s0, sw = _family_design(y, weights)
-    x1, x2, x3 = z[..., 0], z[..., 1], z[..., 2]
-    if family == "full":
-        quad = [x1 * x1, x2 * x2, x3 * x3, 2 * x1 * x2, 2 * x1 * x3, 2 * x2 * x3]
-    elif family == "axes":
-        quad = [x1 * x1, x2 * x2, x3 * x3]
+    S, n = z.shape[:2]
+    q = {"full": 6, "axes": 3}.get(family, 1)  # quadratic columns, then 2z and 1
+    pull = len(_SPHERE_PULL) if family == "full" else 0
+    D = np.empty((S, n + pull, q + 4))
+    rows = D[:, :n]  # the design written in place: a few calls, not one per column
+    if family == "sphere":
+        x1, x2, x3 = z[..., 0], z[..., 1], z[..., 2]
+        rows[..., 0] = x1 * x1 + x2 * x2 + x3 * x3
     else:
-        quad = [x1 * x1 + x2 * x2 + x3 * x3]
-    D = np.stack([*quad, 2 * x1, 2 * x2, 2 * x3, np.ones_like(x1)], axis=-1) * sw
-    S = len(D)
-    if family == "full":
-        D = np.concatenate([D, np.broadcast_to(_SPHERE_PULL, (S, *_SPHERE_PULL.shape))], axis=1)
+        np.multiply(z[..., _LEFT[:q]], z[..., _RIGHT[:q]], out=rows[..., :q])
+        rows[..., 3:q] *= 2.0  # the cross terms' 2 x_i x_j
+    np.multiply(z, 2.0, out=rows[..., q : q + 3])
+    rows[..., q + 3] = 1.0
+    rows *= sw
+    if pull:
+        D[:, n:] = _SPHERE_PULL
     theta = np.linalg.svd(D, full_matrices=False)[2][:, -1]
     if family == "full":
         A = theta[:, SYM_INDEX]

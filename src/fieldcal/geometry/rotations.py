@@ -121,9 +121,10 @@ def wahba(
     """
     body = np.asarray(body, dtype=float)
     world = np.asarray(world, dtype=float)
-    if weights is None:
-        weights = np.ones(body.shape[:-1])
-    B = np.einsum("...k,...ki,...kj->...ij", weights, body, world)
+    if weights is None:  # unit weights: the same sums without multiplying by them
+        B = np.einsum("...ki,...kj->...ij", body, world)
+    else:
+        B = np.einsum("...k,...ki,...kj->...ij", weights, body, world)
     return project_to_so3(B)
 
 

@@ -89,11 +89,34 @@ def global_covariance(ne: Normal) -> tuple[Array, Array, Array, float]:
     return 0.5 * (C + C.T), Uinv, Y, cond
 
 
+#: The named map of each parameter layout seen (a layout is a few integers: the same for every
+#: problem of a session, whatever its noise model or subset of poses).
+_NAMED_MAPS: dict[tuple[object, ...], tuple[list[str], Array]] = {}
+
+
 def named_map(problem: Problem) -> tuple[list[str], Array]:
     """Names and the linear map from the G globals to the named parameters."""
     cached = problem.memo.get("named_map")
     if cached is None:
-        cached = problem.memo["named_map"] = _named_map(problem)
+        layout = (
+            problem.sensors,
+            problem.frame,
+            problem.dip_index,
+            problem.n_global,
+            *(
+                (s, sl.start, sl.stop)
+                for part in (problem.gain_slice, problem.bias_slice, problem.temp_slice)
+                for s, sl in part.items()
+            ),
+        )
+        cached = _NAMED_MAPS.get(layout)
+        if cached is None:
+            names, T = _named_map(problem)
+            T.setflags(write=False)
+            if len(_NAMED_MAPS) >= 64:  # a bound, not a leak, for a long-running process
+                _NAMED_MAPS.clear()
+            cached = _NAMED_MAPS[layout] = (names, T)
+        problem.memo["named_map"] = cached
     names, T = cast(tuple[list[str], Array], cached)
     return list(names), T
 

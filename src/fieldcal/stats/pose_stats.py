@@ -7,6 +7,7 @@ one-line errors for what it may not.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
@@ -125,9 +126,9 @@ class PoseStats(ArrayDataclass):
         sensor = self.accel if self.accel is not None else self.mag
         return 0 if sensor is None else sensor.n_poses
 
-    @property
+    @functools.cached_property
     def sensors(self) -> tuple[str, ...]:
-        """The sensors present, accelerometer first."""
+        """The sensors present, accelerometer first (asked for many times per fit: kept)."""
         return tuple(s for s in ("accel", "mag") if getattr(self, s) is not None)
 
     def sensor(self, name: str) -> SensorStats:
@@ -472,7 +473,7 @@ def _sensor_summary(
 ) -> tuple[_Moments, NDArray[np.int64], NDArray[np.int64] | None]:
     """One sensor's sums (after cutting unsteady samples when ``trim``), checked: NaN, inf and
     readings beyond :data:`LARGEST` are refused in one line, naming where."""
-    counts = np.fromiter((len(p) for p in poses), dtype=np.int64, count=len(poses))
+    counts = np.array([len(p) for p in poses], dtype=np.int64)
     if not trim:
         mo = _moments(poses, counts, extremes, scratch)
         # a NaN or inf reaches the sums; |x| <= |x0| + sqrt(Σ d²) bounds the range, and only

@@ -134,22 +134,30 @@ def unsteady(
             d = np.subtract(x[axis, s:e], median, out=deviations[axis, s:e])
             np.multiply(d, d, out=x[axis, s:e])  # the samples are not needed again
     runs = list(_small(starts, counts))
-    keys = np.empty((3, max((c1 - c0 for _, _, c0, c1 in runs), default=0)))
+    # each run's keys sorted (the MADs read the readings back from them), side by side
+    ordered = np.empty((3, _largest(counts, counts < SELECT, total=True)))
+    done = 0
     for p0, p1, c0, c1 in runs:
-        block = keys[:, : c1 - c0]
-        np.copyto(block, x[:, c0:c1])  # sorted in place: a copy
-        stats[:, :, p0:p1] = _sorted(block, p0, counts[p0:p1], ranks[p0:p1], low, span)
+        block = ordered[:, done : done + c1 - c0]
+        done += c1 - c0
+        stats[:, :, p0:p1] = _sorted(x[:, c0:c1], block, p0, counts[p0:p1], ranks[p0:p1], low, span)
         median = 0.5 * (stats[1, :, p0:p1] + stats[2, :, p0:p1])
         d = deviations[:, c0:c1]
         np.subtract(x[:, c0:c1], np.repeat(median, counts[p0:p1], axis=1), out=d)
         np.multiply(d, d, out=x[:, c0:c1])
     medians = 0.5 * (stats[1] + stats[2])
     squares = x
-    y_a, y_b = stats[0][:, eligible], stats[3][:, eligible]
     found = Unsteady(None, trimmed, medians, deviations, squares)
-    if not eligible.any() or _none_cut(squares, medians[:, eligible], y_a, y_b, row):
+    if not eligible.any():
         return found
-    mads = _mads(deviations, starts, counts, ranks[:, 1:3])
+    y_a, y_b = stats[0][:, eligible], stats[3][:, eligible]
+    if _none_cut(squares, medians[:, eligible], y_a, y_b, row):
+        return found
+    done = 0
+    for p0, p1, c0, c1 in runs:  # the runs' sorted keys back to readings
+        _readings(ordered[:, done : done + c1 - c0], p0, counts[p0:p1], low, span)
+        done += c1 - c0
+    mads = _mads(deviations, starts, counts, ranks[:, 1:3], ordered, runs, medians)
     scale = 1.4826 * _median(mads[:, eligible])
     usable = scale > 0
     if not usable.any():
@@ -176,40 +184,64 @@ def _mads(
     starts: NDArray[np.int64],
     counts: NDArray[np.int64],
     ranks: NDArray[np.int64],
+    ordered: Array,
+    runs: list[tuple[int, int, int, int]],
+    medians: Array,
 ) -> Array:
-    """(3, N): each pose's median absolute deviation per axis. The keys' range is that of
-    the absolute deviations, known once all are computed: the large poses' selected values
-    wait for it, and the small poses' absolute deviations are kept for their sort."""
+    """(3, N): each pose's median absolute deviation per axis, the mean of the absolute
+    deviations of ranks ``ranks`` (N, 2).
+
+    A large pose selects them from its absolute deviations (partitions); the small poses read
+    them from their sorted readings ``ordered`` (the runs side by side, as :func:`unsteady`
+    sorted them), without a second sort: :func:`_window_order`."""
     n = len(counts)
     stats = np.full((2, 3, n), np.nan)
-    low, high = np.full(3, np.inf), np.full(3, -np.inf)
-    pending = []
     part_of = np.empty(_largest(counts, counts >= SELECT))
     for i, s, e, distinct, back, wanted in _large(starts, counts, ranks):
-        picked = np.empty((3, len(back)))
         for axis in range(3):
             part = np.abs(deviations[axis, s:e], out=part_of[: e - s])
-            low[axis] = min(low[axis], part.min())
-            high[axis] = max(high[axis], part.max())
-            picked[axis] = np.array(_select(part, distinct))[back]
-        pending.append((i, wanted, picked))
-    small = list(_small(starts, counts))
-    absolute = np.empty((3, _largest(counts, counts < SELECT, total=True)))
-    blocks = []
+            stats[wanted, axis, i] = np.array(_select(part, distinct))[back]
     done = 0
-    for _, _, c0, c1 in small:
-        part = np.abs(deviations[:, c0:c1], out=absolute[:, done : done + c1 - c0])
-        blocks.append(part)
+    for p0, p1, c0, c1 in runs:
+        y = ordered[:, done : done + c1 - c0]
         done += c1 - c0
-        np.minimum(low, part.min(axis=1), out=low)
-        np.maximum(high, part.max(axis=1), out=high)
-    span = _span(low, high)
-    for i, wanted, picked in pending:
-        for axis in range(3):
-            stats[wanted, axis, i] = _keyed(picked[axis], i, float(low[axis]), float(span[axis]))
-    for (p0, p1, _, _), part in zip(small, blocks, strict=True):
-        stats[:, :, p0:p1] = _sorted(part, p0, counts[p0:p1], ranks[p0:p1], low, span)
+        stats[:, :, p0:p1] = _window_order(y, counts[p0:p1], ranks[p0:p1], medians[:, p0:p1])
     return np.asarray(0.5 * (stats[0] + stats[1]))
+
+
+def _window_order(y: Array, counts: NDArray[np.int64], ranks: NDArray[np.int64], m: Array) -> Array:
+    """(r, 3, k): the absolute deviations ``|y − m|`` of ranks ``ranks`` (k, r) of consecutive
+    poses whose readings ``y`` (3, Σ counts) are sorted within each pose, ``m`` (3, k) their
+    medians.
+
+    The ``q + 1`` readings nearest the median are ``q + 1`` consecutive sorted ones, a window
+    ``y[p .. p + q]``, and the absolute deviation of rank ``q`` is the smallest over the
+    windows of their farther end, ``min_p max(m − y[p], y[p + q] − m)``: the first term falls
+    and the second rises with ``p``, so the best window is where they cross, found by a
+    binary search over ``p`` for every pose, axis and rank at once (``log₂ n`` vectorised
+    steps, no sort). The readings are those the key sort gives back (:func:`_sorted`), so the
+    deviations are those of the sorted keys' values, as the medians are."""
+    k = len(counts)
+    L = y.shape[1]
+    starts = np.cumsum(counts) - counts
+    flat = y.reshape(-1)
+    # (3, k, r): the first sample of each pose in ``flat``, each rank, each median
+    base = (np.arange(3)[:, None] * L + starts[None, :])[:, :, None]
+    q = np.broadcast_to(ranks[None, :, :], (3, k, ranks.shape[1]))
+    mid_value = m[:, :, None]
+    top = np.broadcast_to((counts[:, None] - ranks)[None], q.shape)  # windows p in [0, top)
+    lo = np.zeros(q.shape, dtype=np.int64)
+    hi = top.copy()
+    for _ in range(int(top.max()).bit_length()):
+        p = (lo + hi) >> 1
+        at = base + np.minimum(p, top - 1)
+        crossed = (flat[at + q] - mid_value) >= (mid_value - flat[at])
+        hi = np.where(crossed, p, hi)
+        lo = np.where(crossed, lo, np.minimum(p + 1, hi))
+    # the best window is the first crossed one (its far end) or the one before (its near end)
+    after = np.where(lo < top, flat[base + np.minimum(lo, top - 1) + q] - mid_value, np.inf)
+    before = np.where(lo > 0, mid_value - flat[base + np.maximum(lo - 1, 0)], np.inf)
+    return np.moveaxis(np.minimum(after, before), 2, 0)
 
 
 def _beyond(
@@ -319,6 +351,7 @@ def _keyed(values: Array, pose: int, low: float, span: float) -> Array:
 
 def _sorted(
     x: Array,
+    keys: Array,
     first: int,
     counts: NDArray[np.int64],
     ranks: NDArray[np.int64],
@@ -326,8 +359,8 @@ def _sorted(
     span: Array,
 ) -> Array:
     """Order statistics of consecutive poses ``first, first + 1, ...`` whose samples are ``x``
-    (3, Σ counts; overwritten by their sorted keys): (r, 3, len(counts)), NaN where a rank is
-    -1 (not wanted).
+    (3, Σ counts): (r, 3, len(counts)), NaN where a rank is -1 (not wanted). ``keys`` (the
+    shape of ``x``) receives their sorted keys (:func:`_readings` reads them back).
 
     One sort of ``key = pose · span + (x − low)`` (``low`` the smallest reading, ``span``
     twice the range, per axis) orders the samples by pose, then by value, with a rounding far
@@ -337,15 +370,28 @@ def _sorted(
     k = len(counts)
     out = np.full((ranks.shape[1], x.shape[0], k), np.nan)
     starts = np.cumsum(counts) - counts
-    index = np.repeat(np.arange(first, first + k), counts)
-    x -= low[:, None]
-    x += np.multiply(index, span[:, None])
-    x.sort(axis=1)
+    np.subtract(x, low[:, None], out=keys)
+    keys += _shifts(first, counts, span)
+    keys.sort(axis=1)
     j, pose = np.nonzero((ranks >= 0).T)
     at = starts[pose] + ranks[pose, j]
     shift = np.multiply(pose + first, span[:, None])
-    out[j, :, pose] = ((x[:, at] - shift) + low[:, None]).T
+    out[j, :, pose] = ((keys[:, at] - shift) + low[:, None]).T
     return out
+
+
+def _shifts(first: int, counts: NDArray[np.int64], span: Array) -> Array:
+    """(3, Σ counts): each sample's ``pose · span``, its pose's shift of the keys."""
+    return np.repeat(np.multiply.outer(span, np.arange(first, first + len(counts))), counts, 1)
+
+
+def _readings(keys: Array, first: int, counts: NDArray[np.int64], low: Array, span: Array) -> Array:
+    """The sorted keys of :func:`_sorted` back to readings, in place: each pose's keys stay in
+    its place, so ``key − pose · span + low`` gives its readings sorted (the numbers
+    :func:`_sorted` gives at the ranks it reads)."""
+    keys -= _shifts(first, counts, span)
+    keys += low[:, None]
+    return keys
 
 
 def _select(row: Array, ranks: list[int]) -> list[float]:

@@ -17,6 +17,8 @@ each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattic
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -54,6 +56,8 @@ def _level(n: int) -> Array:
 
 _LEVEL = _level(_HEADINGS)
 _LEVEL.setflags(write=False)
+_EYE = np.eye(3)
+_EYE.setflags(write=False)
 
 
 def _param_block(cov: ParameterCovariance | None, sensor: str) -> Array:
@@ -64,27 +68,56 @@ def _param_block(cov: ParameterCovariance | None, sensor: str) -> Array:
     return block.matrix
 
 
-def _reading_error_cov(cal: Calibration, sensor: str, v: Array) -> Array:
-    """(M, 3, 3): covariance of ``δv`` for body vectors ``v`` (M, 3) of unit length."""
+def _moments(v: Array) -> tuple[Array, Array, Array, Array]:
+    """The means of ``v``, ``v vᵀ``, ``v ⊗ v ⊗ v`` and ``v ⊗ v ⊗ v ⊗ v`` over the rows of
+    ``v``: the RMS errors over the orientations are means of quadratic forms in these."""
+    n = len(v)
+    return (
+        v.mean(axis=0),
+        v.T @ v / n,
+        np.einsum("ni,nj,nk->ijk", v, v, v) / n,
+        np.einsum("ni,nj,nk,nl->ijkl", v, v, v, v) / n,
+    )
+
+
+_S1, _S2, _S3, _S4 = _moments(_SPHERE)
+
+
+def _norm_and_direction(
+    cal: Calibration, sensor: str, direction: bool = True
+) -> tuple[float, float]:
+    """RMS relative norm error and RMS direction error (degrees; 0 unless ``direction``) of a
+    corrected reading, over the orientations of :data:`_SPHERE`.
+
+    ``δv = K⁻¹ (n − δK u − δb)`` relative to the field's magnitude ``|f|`` (``u = |f| v``):
+    along a unit vector ``w`` its variance is ``zᵀ (G P Gᵀ + q² I) z / |f|²`` with
+    ``z = K⁻ᵀ w`` and ``G`` the Jacobian of ``K u + b`` in ``[vec K, b]`` (row-major), so
+    ``Gᵀ z = [z ⊗ u, z]``. The radial part takes ``w = v``, the trace the rows of ``K⁻¹``;
+    their means over the orientations are ``Σ P ∘ E[g gᵀ]`` with the moments of ``v``
+    (:func:`_moments`), not one 3x3 covariance per orientation."""
     sc = cal.sensor(sensor)
-    ref = np.linalg.norm(cal.reference(sensor))
-    u = v * ref  # the field in the calibration's units
-    G = np.zeros((len(u), 3, 12))  # d(K u + b)/d[vec K, b]
-    for j in range(3):
-        G[:, j, 3 * j : 3 * j + 3] = u
-        G[:, j, 9 + j] = 1.0
-    C = G @ _param_block(cal.covariance, sensor) @ G.transpose(0, 2, 1)
-    C = C + sc.pose_noise_std**2 * np.eye(3)
+    ref = float(np.linalg.norm(cal.reference(sensor)))
+    P = _param_block(cal.covariance, sensor)
+    q2 = sc.pose_noise_std**2
     Kinv = np.linalg.inv(sc.gain)
-    return np.asarray(Kinv @ C @ Kinv.T / (ref * ref))  # relative to the field's magnitude
-
-
-def _norm_and_direction(cal: Calibration, sensor: str) -> tuple[float, float]:
-    v = _SPHERE
-    C = _reading_error_cov(cal, sensor, v)
-    radial = np.einsum("ni,nij,nj->n", v, C, v)
-    perp = np.trace(C, axis1=1, axis2=2) - radial
-    return float(np.sqrt(radial.mean())), float(np.degrees(np.sqrt(max(perp.mean(), 0.0))))
+    # radial: z = K⁻ᵀ v, g = [z ⊗ u, z]; E[z_j u_a z_k u_b] = |f|² Σ K⁻¹_cj K⁻¹_dk E[v v v v]
+    E = np.empty((12, 12))
+    KT = Kinv.T
+    E[:9, :9] = (KT @ (KT @ _S4.reshape(3, 27)).reshape(9, 3, 3)).reshape(9, 9) * (ref * ref)
+    E[:9, 9:] = (KT @ _S3.reshape(3, 9)).reshape(9, 3) @ Kinv * ref
+    E[9:, :9] = E[:9, 9:].T
+    E[9:, 9:] = KT @ _S2 @ Kinv
+    radial = (float(np.vdot(P, E)) + q2 * float(E[9, 9] + E[10, 10] + E[11, 11])) / (ref * ref)
+    if not direction:
+        return float(np.sqrt(radial)), 0.0
+    # the trace: the rows k_r of K⁻¹ for z, summed (Σ_r k_r k_rᵀ = K⁻ᵀ K⁻¹)
+    A = KT @ Kinv
+    E[:9, :9] = (A[:, None, :, None] * _S2[None, :, None, :]).reshape(9, 9) * (ref * ref)
+    E[:9, 9:] = (A[:, None, :] * _S1[None, :, None]).reshape(9, 3) * ref
+    E[9:, :9] = E[:9, 9:].T
+    E[9:, 9:] = A
+    trace = (float(np.vdot(P, E)) + q2 * float(A[0, 0] + A[1, 1] + A[2, 2])) / (ref * ref)
+    return float(np.sqrt(radial)), float(np.degrees(np.sqrt(max(trace - radial, 0.0))))
 
 
 def _heading(a: Array, m: Array) -> Array:
@@ -100,57 +133,84 @@ def _heading(a: Array, m: Array) -> Array:
     return np.asarray(np.arctan2(d1 * dm - m1 * dd, m0 * dd - d0 * dm))
 
 
+#: Each sensor's gain and bias names, in the order of its 12 heading parameters.
+_NAMES = {
+    s: [f"{s}.gain[{j},{k}]" for j in range(3) for k in range(3)]
+    + [f"{s}.bias[{j}]" for j in range(3)]
+    for s in ("accel", "mag")
+}
+#: Sherman-Morrison's indices: the gain entry ``K[j, l]`` of each of the 9 parameters.
+_ROW, _COL = np.divmod(np.arange(9), 3)
+
+
+@functools.lru_cache(maxsize=64)
+def _positions(names: tuple[str, ...]) -> NDArray[np.intp] | None:
+    """Where both sensors' 24 gain and bias parameters sit among ``names`` (``None``: not all
+    there); one look-up per set of names, not per calibration."""
+    where = {n: i for i, n in reversed(list(enumerate(names)))}
+    wanted = _NAMES["accel"] + _NAMES["mag"]
+    if not all(n in where for n in wanted):
+        return None
+    return np.array([where[n] for n in wanted], dtype=np.intp)
+
+
+def _parameter_cov(cal: Calibration) -> Array:
+    """(30, 30) covariance of the heading's parameters: ``vec K_a, b_a, vec K_m, b_m`` (their
+    own blocks as :func:`_param_block` gives them, the cross block from the joint covariance)
+    and the two sensors' pose-level noise."""
+    C = np.zeros((30, 30))
+    cov = cal.covariance
+    at = None if cov is None else _positions(cov.names)
+    if cov is not None and at is not None:  # correlated through the poses
+        C[:24, :24] = cov.matrix[np.ix_(at, at)]
+    for k, name in enumerate(("accel", "mag")):
+        block = slice(12 * k, 12 * k + 12)
+        if at is None or len(cov.sensor_blocks[name].names) != 12:  # type: ignore[union-attr]
+            C[block, block] = _param_block(cov, name)
+        q2 = cal.sensor(name).pose_noise_std ** 2
+        C.reshape(-1)[(24 + 3 * k) * 31 : (27 + 3 * k) * 31 : 31] = q2
+    return C
+
+
 def _heading_error(cal: Calibration) -> float | None:
     if cal.accel is None or cal.mag is None or cal.gravity is None or cal.magnetic is None:
         return None
-    raw = {
-        name: (_LEVEL @ cal.reference(name)) @ cal.sensor(name).gain.T + cal.sensor(name).bias
-        for name in ("accel", "mag")
-    }
-    # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6)
-    base = {n: (cal.sensor(n).gain, cal.sensor(n).bias) for n in ("accel", "mag")}
+    # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6); both sensors at
+    # once, the same arithmetic per sensor as one at a time
+    K = np.stack([cal.accel.gain, cal.mag.gain])
+    b = np.stack([cal.accel.bias, cal.mag.bias])
+    raw = (_LEVEL @ np.stack([cal.gravity, cal.magnetic]).T).transpose(2, 0, 1)
+    raw = raw @ K.transpose(0, 2, 1) + b[:, None, :]
     # one step per sensor, in its own raw units (the two gains may differ by 10^4): each
     # sensor's parameter and noise rows are perturbed by its step and divided by it below
+    step = 1e-6 * np.abs(K).max(axis=(1, 2))
     steps = np.ones(31)
+    steps[1:25] = np.repeat(step, 12)
+    steps[25:] = np.repeat(step, 3)
+    # one solve gives the corrected readings and K⁻¹ (the right-hand sides' last columns)
+    rhs = np.concatenate(
+        [(raw - b[:, None, :]).transpose(0, 2, 1), np.broadcast_to(_EYE, K.shape)], 2
+    )
+    solved = np.linalg.solve(K, rhs)
+    u, Kinv = solved[:, :, :_HEADINGS].transpose(0, 2, 1), solved[:, :, _HEADINGS:]
     # corrected readings (31, H, 3) per sensor: unperturbed, then one row per parameter
-    corrected = {}
-    for k, name in enumerate(("accel", "mag")):
-        K, b = base[name]
-        step = 1e-6 * float(np.abs(K).max())
-        steps[1 + 12 * k : 13 + 12 * k] = step
-        steps[25 + 3 * k : 28 + 3 * k] = step
-        # one solve gives the corrected readings and K⁻¹ (the right-hand sides' last columns)
-        solved = np.linalg.solve(K, np.column_stack([(raw[name] - b).T, np.eye(3)]))
-        u, Kinv = solved[:, :_HEADINGS].T, solved[:, _HEADINGS:]
-        rows = np.broadcast_to(u, (31, _HEADINGS, 3)).copy()
-        # a gain entry K[j, l] + s: Sherman-Morrison, u − s K⁻¹e_j u_l / (1 + s K⁻¹[l, j])
-        j, col = np.divmod(np.arange(9), 3)
-        denom = 1.0 + step * Kinv[col, j]
+    rows = np.broadcast_to(u[:, None], (2, 31, _HEADINGS, 3)).copy()
+    # a gain entry K[j, l] + s: Sherman-Morrison, u − s K⁻¹e_j u_l / (1 + s K⁻¹[l, j])
+    s = step[:, None]
+    denom = 1.0 + s * Kinv[:, _COL, _ROW]
+    along = s[:, :, None] * u[:, :, _COL].transpose(0, 2, 1) / denom[:, :, None]  # (2, 9, H)
+    change = along[..., None] * Kinv[:, :, _ROW].transpose(0, 2, 1)[:, :, None, :]
+    # a bias b_j + s moves the reading by −s K⁻¹e_j, a noise n_j + s by +s K⁻¹e_j
+    shift = s[:, :, None] * Kinv.transpose(0, 2, 1)
+    for k in range(2):
         first = 1 + 12 * k
-        along = step * u[:, col].T / denom[:, None]  # (9, H): s u_l / (1 + s K⁻¹[l, j])
-        rows[first : first + 9] -= along[:, :, None] * Kinv[:, j].T[:, None, :]
-        # a bias b_j + s moves the reading by −s K⁻¹e_j, a noise n_j + s by +s K⁻¹e_j
-        rows[first + 9 : first + 12] -= step * Kinv.T[:, None, :]
-        rows[25 + 3 * k : 28 + 3 * k] += step * Kinv.T[:, None, :]
-        corrected[name] = rows
-    both = _heading(corrected["accel"], corrected["mag"])
+        rows[k, first : first + 9] -= change[k]
+        rows[k, first + 9 : first + 12] -= shift[k][:, None, :]
+        rows[k, 25 + 3 * k : 28 + 3 * k] += shift[k][:, None, :]
+    both = _heading(rows[0], rows[1])
     wrapped = np.remainder(both[1:] - both[0] + np.pi, 2.0 * np.pi) - np.pi
     J = (wrapped / steps[1:, None]).T  # (H, 30)
-    C = np.zeros((30, 30))
-    C[:12, :12] = _param_block(cal.covariance, "accel")
-    C[12:24, 12:24] = _param_block(cal.covariance, "mag")
-    if cal.covariance is not None:  # the two sensors' parameters are correlated through the poses
-        names = [f"accel.gain[{j},{k}]" for j in range(3) for k in range(3)]
-        names += [f"accel.bias[{j}]" for j in range(3)]
-        other = [n.replace("accel", "mag") for n in names]
-        if all(n in cal.covariance.names for n in names + other):
-            ia = [cal.covariance.index(n) for n in names]
-            im = [cal.covariance.index(n) for n in other]
-            C[:12, 12:24] = cal.covariance.matrix[np.ix_(ia, im)]
-            C[12:24, :12] = C[:12, 12:24].T
-    C[24:27, 24:27] = np.eye(3) * cal.sensor("accel").pose_noise_std ** 2
-    C[27:30, 27:30] = np.eye(3) * cal.sensor("mag").pose_noise_std ** 2
-    var = np.einsum("hp,hp->h", J @ C, J)
+    var = np.einsum("hp,hp->h", J @ _parameter_cov(cal), J)
     return float(np.degrees(np.sqrt(max(var.mean(), 0.0))))
 
 
@@ -160,7 +220,7 @@ def predict_accuracy(cal: Calibration) -> Accuracy:
     if cal.accel is not None and cal.gravity is not None:
         accel_norm, tilt = _norm_and_direction(cal, "accel")
     if cal.mag is not None and cal.magnetic is not None:
-        mag_norm, _ = _norm_and_direction(cal, "mag")
+        mag_norm, _ = _norm_and_direction(cal, "mag", direction=False)
     return Accuracy(
         tilt_deg=tilt,
         heading_deg=_heading_error(cal),

@@ -34,19 +34,25 @@ def pose_table(
     temperature column, the pose's mean temperature (°C)."""
     cost = ev.pose_cost
     total = float(cost.sum())
+    sensors = stats.sensors
+    # each column as Python numbers in one call, then the rows (no numpy scalar per entry)
+    counts = {s: stats.sensor(s).counts.tolist() for s in sensors}
+    cut = {s: t.tolist() for s in sensors if (t := stats.sensor(s).trimmed) is not None}
+    residual = {s: (-ev.raw[s]).tolist() for s in sensors}
+    means = None if stats.temperature is None else stats.temperature.means.tolist()
+    shares = (cost / total).tolist() if total > 0 else [0.0] * len(cost)
     rows = []
-    for i in range(stats.n_poses):
-        row: dict[str, object] = {"index": int(index[i])}
-        for s in stats.sensors:
-            sensor = stats.sensor(s)
-            row[f"{s}_samples"] = int(sensor.counts[i])
-            if sensor.trimmed is not None and sensor.trimmed[i]:
-                row[f"{s}_trimmed"] = int(sensor.trimmed[i])
-            row[f"{s}_residual"] = [float(-x) for x in ev.raw[s][i]]
-        row["samples"] = max(int(stats.sensor(s).counts[i]) for s in stats.sensors)
-        if stats.temperature is not None:  # the pose's mean temperature (°C): the report's
-            row["temperature"] = float(stats.temperature.means[i])
-        row["cost"] = float(cost[i])
-        row["share"] = float(cost[i] / total) if total > 0 else 0.0
+    for i, (pose, c) in enumerate(zip(index.tolist(), cost.tolist(), strict=True)):
+        row: dict[str, object] = {"index": int(pose)}
+        for s in sensors:
+            row[f"{s}_samples"] = counts[s][i]
+            if s in cut and cut[s][i]:
+                row[f"{s}_trimmed"] = cut[s][i]
+            row[f"{s}_residual"] = residual[s][i]
+        row["samples"] = max(counts[s][i] for s in sensors)
+        if means is not None:  # the pose's mean temperature (°C): the report's
+            row["temperature"] = float(means[i])
+        row["cost"] = c
+        row["share"] = shares[i]
         rows.append(row)
     return rows

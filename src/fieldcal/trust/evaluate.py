@@ -7,6 +7,7 @@ whitened by each pose mean's covariance ``C_si = Σ_s/Δ_si + Q_s`` (the stats' 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import cast
 
@@ -57,10 +58,12 @@ class Evaluation:
         k = self.problem.sensors.index(sensor)
         return slice(3 * k, 3 * k + 3)
 
-    @property
+    @functools.cached_property
     def pose_cost(self) -> Array:
-        """Each pose's term of Eq. 8 (both sensors)."""
-        return np.asarray(np.einsum("ni,ni->n", self.whitened, self.whitened))
+        """Each pose's term of Eq. 8 (both sensors); computed once, read-only."""
+        cost = np.asarray(np.einsum("ni,ni->n", self.whitened, self.whitened))
+        cost.setflags(write=False)
+        return cost
 
     def sensor_cost(self, sensor: str) -> float:
         """Sensor ``sensor``'s part of Eq. 8's J."""
@@ -68,7 +71,11 @@ class Evaluation:
         return float(np.sum(e * e))
 
     def dof_share(self) -> dict[str, float]:
-        """Each sensor's expected part of J, ``3N − tr(H_ss)``."""
+        """Each sensor's expected part of J, ``3N − tr(H_ss)`` (computed once)."""
+        return dict(self._dof_share)
+
+    @functools.cached_property
+    def _dof_share(self) -> dict[str, float]:
         return self.uncertainty.dof_share(self.problem)
 
 

@@ -64,6 +64,9 @@ RADIAL = 0.5
 #: A pose whose own scatter exceeds this multiple of the typical pose's moved within it.
 SWING = 10.0
 
+_EYE = np.eye(3)
+_EYE.setflags(write=False)
+
 
 @dataclass(frozen=True)
 class PoseTests:
@@ -125,12 +128,16 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
     pval = np.ones((n, len(sensors)))
     radial = np.ones((n, len(sensors)))
     joint = _joint_deletion(ev, lev)
+    # every sensor's own test at once: its whitened residuals and leverage blocks, stacked
+    blocks = [ev.block(s) for s in sensors]
+    own = np.concatenate([lev[:, b, b] for b in blocks]) if len(blocks) > 1 else lev
+    t_all, r_all = _studentised(
+        ev.whitened.reshape(n, len(sensors), 3).transpose(1, 0, 2).reshape(-1, 3), _EYE - own
+    )
     for j, s in enumerate(sensors):
         along = np.einsum("ni,ni->n", ev.raw[s], ev.directions[s]) ** 2
         radial[:, j] = along / np.maximum(np.einsum("ni,ni->n", ev.raw[s], ev.raw[s]), 1e-300)
-        block = ev.block(s)
-        e = ev.whitened[:, block]
-        t, r = _studentised(e, np.eye(3) - lev[:, block, block])
+        t, r = t_all[j * n : (j + 1) * n], r_all[j * n : (j + 1) * n]
         w = _estimated_share(stats, noise, s)
         if w > 0:
             # delete pose i: J_s loses exactly t_i (linear model), the degrees of freedom r_i;

@@ -325,11 +325,18 @@ def _same_sensor(case: Case) -> Iterator[Fired]:
         "accel" in stats.sensors and "mag" in stats.sensors and stats.n_poses >= 5
     ):
         return
-    X = np.column_stack([stats.sensor("accel").means, np.ones(stats.n_poses)])
+    # the affine least-squares fit of the magnetometer's means by the accelerometer's, centred
+    # (the intercept is the means' difference): normal equations of a 3x3 system
+    A = stats.sensor("accel").means
     Y = stats.sensor("mag").means
-    coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
-    spread = np.linalg.norm(Y - Y.mean(axis=0))
-    residual = float(np.linalg.norm(Y - X @ coef) / spread) if spread > 0 else 0.0
+    A = A - A.mean(axis=0)
+    Y = Y - Y.mean(axis=0)
+    try:
+        coef = np.linalg.solve(A.T @ A, A.T @ Y)
+    except np.linalg.LinAlgError:  # accelerometer means on a plane: the general solver
+        coef = np.linalg.lstsq(A, Y, rcond=None)[0]
+    spread = float(np.sqrt(np.vdot(Y, Y)))
+    residual = float(np.linalg.norm(Y - A @ coef) / spread) if spread > 0 else 0.0
     if residual < 0.02:
         yield "same_sensor", {"residual": residual}
 
@@ -418,21 +425,31 @@ def _untested(case: Case) -> Iterator[Fired]:
     )
 
 
-def _shape(gain: Array) -> tuple[float, Array] | None:
-    """The gain's scale (geometric mean of its singular values) and its symmetric factor
+def _shapes(gains: Array) -> list[tuple[float, Array] | None]:
+    """Each gain's scale (geometric mean of its singular values) and its symmetric factor
     (``K = U P``, ``P = V Σ Vᵀ``) divided by that scale: the axis scales and cross terms;
-    ``None`` for a gain of rank below 3 (numpy's ``matrix_rank`` tolerance)."""
-    _, sigma, Vt = np.linalg.svd(gain)
-    if not sigma[-1] > sigma[0] * 3 * np.finfo(float).eps:
-        return None
-    scale = float(np.exp(np.mean(np.log(sigma))))
-    return scale, np.asarray((Vt.T * (sigma / scale)) @ Vt)
+    ``None`` for a gain of rank below 3 (numpy's ``matrix_rank`` tolerance) or not finite.
+    One SVD for all the gains (S, 3, 3)."""
+    finite: NDArray[np.bool_] = np.asarray(np.isfinite(gains).all(axis=(1, 2)))
+    if not finite.all():
+        gains = np.where(finite[:, None, None], gains, _EYE)
+    _, sigma, Vt = np.linalg.svd(gains)
+    full = finite & (sigma[:, -1] > sigma[:, 0] * _RANK_TOL)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a singular gain: not used
+        scale = np.exp(np.add.reduce(np.log(sigma), axis=1) / 3.0)  # np.mean's numbers
+        shape = (Vt.transpose(0, 2, 1) * (sigma / scale[:, None])[:, None, :]) @ Vt
+    return [(float(scale[k]), shape[k]) if full[k] else None for k in range(len(gains))]
+
+
+_EYE = np.eye(3)
+_EYE.setflags(write=False)
+_RANK_TOL = 3 * float(np.finfo(float).eps)
 
 
 def _gains(case: Case) -> Iterator[Fired]:
-    for s in case.sensors:
-        gain = case.cal.sensor(s).gain
-        shaped = _shape(gain) if np.all(np.isfinite(gain)) else None
+    sensors = case.sensors
+    shapes = _shapes(np.stack([case.cal.sensor(s).gain for s in sensors]))
+    for s, shaped in zip(sensors, shapes, strict=True):
         if shaped is None:
             continue
         scale, shape = shaped
@@ -454,7 +471,7 @@ def _gains(case: Case) -> Iterator[Fired]:
                 },
             )
             continue
-        off = np.abs(shape - np.eye(3))
+        off = np.abs(shape - _EYE)
         if off.max() > GAIN_SHAPE[s]:
             i, j = np.unravel_index(int(np.argmax(off)), off.shape)
             yield (

@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -28,7 +30,16 @@ Array = NDArray[np.float64]
 
 
 def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
-    """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid."""
+    """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid (each sensor
+    and family fitted once per problem: the mixed starts share them, ``problem.memo``)."""
+    key = ("sensor_start", sensor, model)
+    if key not in problem.memo:
+        problem.memo[key] = _sensor_start(problem, sensor, model)
+    fit = cast(tuple[Array, Array] | None, problem.memo[key])
+    return None if fit is None else (fit[0].copy(), fit[1].copy())  # a start is changed
+
+
+def _sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
     w = problem.start_weight[sensor]
     fit = family_fit(problem.start_mu[sensor], w, model)
     if fit is None:
@@ -45,6 +56,18 @@ def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
     means = problem.means[sensor]
     u = np.linalg.solve(K, (means - b).T).T
     return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _both_directions(
+    problem: Problem, gains: tuple[Array, Array], biases: tuple[Array, Array]
+) -> tuple[Array, Array]:
+    """:func:`_directions` of the accelerometer and the magnetometer in one solve (the same
+    numbers: one LAPACK solve per matrix either way)."""
+    means = np.stack([problem.means["accel"], problem.means["mag"]])
+    u = np.linalg.solve(np.stack(gains), (means - np.stack(biases)[:, None, :]).transpose(0, 2, 1))
+    u = u.transpose(0, 2, 1)
+    u = u / np.linalg.norm(u, axis=2, keepdims=True)
+    return u[0], u[1]
 
 
 def min_rotations(f: Array, u: Array) -> Array:
@@ -102,8 +125,7 @@ def start_from_fits(problem: Problem, fits: dict[str, tuple[Array, Array]]) -> S
         R = min_rotations(field(problem, s, 0.0), u)
         return State({s: K}, {s: b}, 0.0, R)
     (Ka, ba), (Km, bm) = fits["accel"], fits["mag"]
-    u = _directions(problem, "accel", Ka, ba)
-    vp = _directions(problem, "mag", Km, bm)
+    u, vp = _both_directions(problem, (Ka, Km), (ba, bm))
     w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
     Q, c = constant_angle(u, vp, w)
     dip = float(np.arcsin(-c))  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
