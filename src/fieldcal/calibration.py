@@ -43,7 +43,7 @@ from .geometry.frames import (
 from .limits import LARGEST, RANGE_TEXT, in_range
 from .notebook import calibration_html
 from .reference import FieldReference
-from .serialize import SCHEMA, SCHEMA_VERSION, decode, encode, upgrade
+from .serialize import SCHEMA, SCHEMA_VERSION, decode, dumps, encode, upgrade
 from .thermal import TemperatureModel, temperature_names
 
 if TYPE_CHECKING:
@@ -817,7 +817,7 @@ class Calibration(ArrayDataclass):
 
     def to_json(self, indent: int | None = 2) -> str:
         """Serialise to the versioned JSON schema (lossless: floats are written exactly)."""
-        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+        return dumps(self.to_dict(), indent)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, object]) -> Calibration:
