@@ -32,6 +32,7 @@ then has one core, as fieldcal's own work has).
 
     python benchmarks/scaling.py --cpu 1                   # docs/benchmarks.md updated
     python benchmarks/scaling.py --poses 10 100 --repeat 1 --no-issue-row --no-docs
+    python benchmarks/scaling.py --poses --repeat 5 --cpu 1  # the issue's row alone, printed
 """
 
 from __future__ import annotations
@@ -269,7 +270,9 @@ def issue_table(row: Row, repeat: int) -> str:
 def main() -> None:
     global ENV, CPU
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--poses", type=int, nargs="+", default=[10, 100, 1000, 10000])
+    parser.add_argument("--poses", type=int, nargs="*", default=[10, 100, 1000, 10000],
+                        help="pose counts; none (a bare --poses): the issue's row alone, "
+                        "printed, docs not written")  # fmt: skip
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--gyro-max", type=int, default=10000,
                         help="poses above which the gyroscope stage is left out")  # fmt: skip
@@ -298,11 +301,11 @@ def main() -> None:
         if args.issue_row:
             issue = measure(1200, args.repeat, True, False, Path(folder), "issue")
             print(issue, flush=True)
-    text = tables(results, args.repeat)
+    text = tables(results, args.repeat) if results else ""
     if issue is not None:
-        text += "\n\n" + issue_table(issue, args.repeat)
+        text += ("\n\n" if text else "") + issue_table(issue, args.repeat)
     print(text)
-    if not args.no_docs:
+    if not args.no_docs and results:
         command = "python benchmarks/scaling.py " + " ".join(sys.argv[1:])
         write_section(
             "scaling", f"## Against the number of poses\n\n{stamp(command.strip())}\n{text}"

@@ -11,7 +11,16 @@ import pytest
 from fieldcal.geometry.rotations import exp_so3
 from fieldcal.gyro.gyro_data import build_segments, check_rows, pose_statistics
 from fieldcal.gyro.gyro_model import SegmentModel, right_jacobian
-from fieldcal.gyro.gyro_pass import JACOBIAN, NOISE, TURNS, Integrator, chunks_of
+from fieldcal.gyro.gyro_pass import (
+    JACOBIAN,
+    NOISE,
+    TURNS,
+    Integrator,
+    chunks_of,
+    right_jacobian_columns,
+    step_right_jacobian,
+)
+from fieldcal.gyro.integrate import step_parts
 from fieldcal.simulation.continuous import simulate_continuous
 
 # round-off of a few hundred composed steps, far below any statistical scale of the fit
@@ -63,13 +72,13 @@ def _reference(data, Q, x):
     return total, sums
 
 
-@pytest.mark.parametrize("sizes", [None, (300, 70), (1, 1)])
+@pytest.mark.parametrize("sizes", [None, (300, 70), (1, 1), (300, 70, 4), (10**6, 70, 3)])
 def test_pass_is_the_interval_by_interval_computation(case, sizes):
     _, data, Q, x = case
     integrator = Integrator(data, Q)
-    if sizes is not None:  # many chunks and parts: every boundary handled
+    if sizes is not None:  # many chunks, parts and blocks: every boundary handled
         integrator._chunks = chunks_of(data, *sizes)
-        assert len(integrator._chunks) > 1
+        assert len(integrator._chunks) > 1 or len(data.dt) > 32 * sizes[2]
     done = integrator.run(x, JACOBIAN)
     total, sums = _reference(data, Q, x)
     _close(done.total, total)
@@ -137,3 +146,33 @@ def test_the_integration_noise_is_the_rotated_noise_density(case):
     M = x[:9].reshape(3, 3)
     seconds = np.add.reduceat(data.dt, data.first)
     _close(np.trace(cov, axis1=1, axis2=2), np.trace(M @ Q @ M.T) * seconds)
+
+
+def test_the_steps_right_jacobian_is_the_right_jacobian_of_the_step():
+    # from the half angles' sine and cosine, across the series' edge (10⁻³) and large turns
+    rng = np.random.default_rng(6)
+    angle = np.concatenate([[0.0, 1e-5, 5e-4, 9.99e-4, 1.001e-3, 2e-3], rng.uniform(0, 3, 40)])
+    axis = rng.normal(size=(3, len(angle)))
+    h = axis / np.linalg.norm(axis, axis=0) * angle
+    q, theta2, half_sinc = step_parts(h)
+    got = step_right_jacobian(h, theta2, half_sinc, q[0])
+    want = right_jacobian_columns(-h)
+    assert np.max(np.abs(got - want)) <= 1e-12
+    for k in range(len(angle)):
+        np.testing.assert_allclose(got[:, :, k], right_jacobian(-h[:, k]), rtol=0, atol=1e-12)
+
+
+def test_path_lengths_are_the_rates_integrated_fresh_or_from_the_last_pass(case):
+    _, data, Q, x = case
+    M, b = x[:9].reshape(3, 3), x[9:].reshape(-1, 3)
+    lam, pose = data.lam[:, None], data.before[data.seg]
+    w = (data.raw - ((1 - lam) * b[pose] + lam * b[pose + 1])) @ M.T
+    want = np.add.reduceat(np.linalg.norm(w, axis=1) * data.dt, data.first)
+    integrator = Integrator(data, Q)
+    _close(integrator.path_length(x), want)
+    integrator.run(x, JACOBIAN)  # its steps kept: the same numbers
+    _close(integrator.path_length(x), want)
+    other = x.copy()
+    other[0] *= 1.1  # a pass elsewhere: the kept steps are not used
+    integrator.run(other, TURNS)
+    _close(integrator.path_length(x), want)

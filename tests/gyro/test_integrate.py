@@ -8,9 +8,11 @@ import pytest
 
 from fieldcal.errors import InputError
 from fieldcal.gyro.integrate import (
+    block_scan,
     cumulative_columns,
     cumulative_quaternions,
     integrate,
+    multiply_columns,
     segment_turns,
 )
 
@@ -45,6 +47,18 @@ def test_segment_turns_refuses_time_going_backwards_and_spans_outside(motion):
         segment_turns(t, w, [(5, 3)])
     with pytest.raises(InputError, match="spans must be"):
         segment_turns(t, w, [(0, len(t))])
+
+
+def test_the_block_scan_factors_are_the_scan():
+    # inner[k] ⊗ before[k // block] is the scan at k, whether Hillis-Steele's or blocked
+    rng = np.random.default_rng(3)
+    for m, block in ((1, 4), (100, 4), (129, 4), (1000, 4), (5000, 64)):
+        q = rng.normal(size=(4, m))
+        q /= np.linalg.norm(q, axis=0)
+        inner, before = block_scan(q, block)
+        assert before.shape == (4, -(-m // block))
+        got = multiply_columns(inner, before[:, np.arange(m) // block])
+        np.testing.assert_allclose(got, cumulative_columns(q), rtol=0, atol=1e-13)
 
 
 def test_the_scan_by_component_is_the_scan_of_quaternions():

@@ -69,14 +69,20 @@ class Arrow:
         past the end), from ``Lᵀ X = L⁻¹`` swept backwards."""
         n, q = self.n, self.q
         inv, off = self._blocks()
-        x0 = np.zeros((n, q, q))
+        own = np.transpose(inv, (0, 2, 1)) @ inv  # L_ii⁻ᵀ L_ii⁻¹
+        A = np.transpose(inv[:-1], (0, 2, 1)) @ np.transpose(off, (0, 2, 1))  # L_ii⁻ᵀ L_{i+1,i}ᵀ
+        # (T⁻¹)_{i,i} = L_ii⁻ᵀ L_ii⁻¹ + a_i (T⁻¹)_{i+1,i+1} a_iᵀ: the one sequential sweep, on
+        # plain lists of (q, q) blocks (numpy's indexing kept out of it)
+        a, at, own_list = list(A), list(np.transpose(A, (0, 2, 1))), list(own)
+        s0 = own_list[n - 1]
+        diagonal = [s0] * n
+        for i in range(n - 2, -1, -1):
+            s0 = own_list[i] + a[i] @ s0 @ at[i]
+            diagonal[i] = s0
+        x0 = np.array(diagonal).reshape(n, q, q)
+        # the blocks off the diagonal from it, all at once
         x1 = np.zeros((n, q, q))
         x2 = np.zeros((n, q, q))
-        x0[-1] = inv[-1].T @ inv[-1]
-        for i in range(n - 2, -1, -1):
-            a = inv[i].T @ off[i].T  # L_ii⁻ᵀ L_{i+1,i}ᵀ
-            x1[i] = -a @ x0[i + 1]
-            if i + 2 < n:
-                x2[i] = -a @ x1[i + 1]
-            x0[i] = inv[i].T @ inv[i] - a @ x1[i].T
+        x1[:-1] = -A @ x0[1:]
+        x2[:-2] = -A[:-1] @ x1[1:-1]
         return x0, x1, x2

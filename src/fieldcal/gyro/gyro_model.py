@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.rotations import hat
-from .gyro_data import Segments, interval_bias
+from .gyro_data import Segments
 from .gyro_pass import JACOBIAN, NOISE, TURNS, Integrator, Pass
 from .integrate import rotation_vector
 
@@ -108,18 +108,10 @@ class SegmentModel:
     def n_params(self) -> int:
         return 9 + 3 * self.n
 
-    def rates(self, x: Array) -> tuple[Array, Array]:
-        """Corrected raw ``raw − b(t)`` (J, 3) and the rate (J, 3)."""
-        M = x[:9].reshape(3, 3)
-        bias = interval_bias(self.data, x[9:].reshape(self.n, 3))
-        u = self.data.raw - bias
-        return u, u @ M.T
-
     def path_length(self, x: Array) -> Array:
         """The angle (rad) each segment turns through, ``∫ |ω| dt``."""
-        _, w = self.rates(x)
-        out: Array = np.add.reduceat(np.linalg.norm(w, axis=1) * self.data.dt, self.data.first)
-        return out
+        out = self._integrator.path_length(x)
+        return out if self._positions is None else out[self._positions]
 
     def residuals(self, x: Array) -> Array:
         """The residuals (M, d) at ``x`` alone (the cost of a trial step): the segments' turns

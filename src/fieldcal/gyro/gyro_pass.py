@@ -11,7 +11,7 @@ rotation from the segment's start to the interval's:
 - the turn ``ΔR̂_k``, the ordered product of the steps (:mod:`.integrate`);
 - the integration noise ``Σ_j dt_j P_{j−1}ᵀ (M Q Mᵀ) P_{j−1}``;
 - with ``D_j = dt_j P_{j−1}ᵀ J_r(φ_j)`` (the change of the segment's rotation with the
-  interval's rate, :func:`right_jacobian_columns`): ``Σ_j D_j ⊗ u_j`` (the gain's part),
+  interval's rate, :func:`step_right_jacobian`): ``Σ_j D_j ⊗ u_j`` (the gain's part),
   ``Σ_j D_j (1 − λ_j)`` and ``Σ_j D_j λ_j`` (the biases of the poses before and after).
 """
 
@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .gyro_data import Segments
-from .integrate import cumulative_columns, matrix_columns, multiply_columns, runs, step_columns
+from .integrate import SCAN_BLOCK, block_scan, matrix_columns, multiply_columns, runs, step_parts
 
 Array = NDArray[np.float64]
 
@@ -56,6 +56,13 @@ class Chunk:
     last: NDArray[np.int64]  # (M_c,) last interval of each segment, within the chunk
     seg: NDArray[np.int64]  # (J_c,) each interval's segment, within the chunk
     parts: list[slice]  # the chunk's segments in runs of about PART intervals
+    # the scan's block of the rotation before each interval (:func:`.integrate.block_scan`)
+    # and the (block, segment) pairs the intervals fall in: one product per pair carries the
+    # blocks before it and the segment's start, and no pass over the intervals does
+    block: int  # the scan's block length
+    pair: NDArray[np.int64]  # (J_c,) each interval's pair
+    pair_block: NDArray[np.int64]  # (pairs,)
+    pair_seg: NDArray[np.int64]  # (pairs,)
 
 
 @dataclass
@@ -72,13 +79,22 @@ class Pass:
         return Pass(self.level, self.total[rows], self.sums[:, rows])
 
 
-def chunks_of(data: Segments, size: int = CHUNK, part: int = PART) -> list[Chunk]:
-    """The segments in runs of about ``size`` intervals (at least one segment each)."""
+def chunks_of(
+    data: Segments, size: int = CHUNK, part: int = PART, block: int = SCAN_BLOCK
+) -> list[Chunk]:
+    """The segments in runs of about ``size`` intervals (at least one segment each), scanned
+    in blocks of ``block`` steps."""
     out: list[Chunk] = []
     for run in runs(data.first, data.last, size):
         j0, j1 = int(data.first[run][0]), int(data.last[run][-1]) + 1
         first, last = data.first[run] - j0, data.last[run] - j0
         seg = data.seg[j0:j1]
+        # the block of the rotation before interval j: that of step j − 1 (the identity, in
+        # block 0, before the first)
+        within = np.maximum(np.arange(j1 - j0) - 1, 0) // block
+        new = np.ones(j1 - j0, dtype=bool)
+        new[1:] = (within[1:] != within[:-1]) | (seg[1:] != seg[:-1])
+        starts = np.flatnonzero(new)
         out.append(
             Chunk(
                 run,
@@ -90,6 +106,10 @@ def chunks_of(data: Segments, size: int = CHUNK, part: int = PART) -> list[Chunk
                 last,
                 seg - run.start,
                 runs(first, last, part),
+                block,
+                np.cumsum(new) - 1,
+                within[starts],
+                seg[starts] - run.start,
             )
         )
     return out
@@ -105,6 +125,40 @@ def right_jacobian_columns(phi: Array) -> Array:
     s = np.where(small, 1.0, t)
     a = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(s)) / (s * s))
     b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (s - np.sin(s)) / (s * s * s))
+    return _right_jacobian(phi, t2, a, b)
+
+
+def step_right_jacobian(h: Array, theta2: Array, half_sinc: Array, cos_half: Array) -> Array:
+    """``J_r(−h)`` (3, 3, J) of the steps' rotation vectors ``h = ω dt`` (3, J), as
+    :func:`right_jacobian_columns` of ``−h`` but from the sines and cosines of the half
+    angles the step quaternions already hold: ``1 − cos θ = 2 sin²(θ/2)`` and
+    ``sin θ = 2 sin(θ/2) cos(θ/2)``, so ``a = 2 (sin(θ/2)/θ)²`` (no cancellation at any
+    angle) and ``b = (1 − 2 (sin(θ/2)/θ) cos(θ/2)) / θ²`` (its series below 10⁻³):
+    ``(1 − b θ²) I + a [h]× + b h hᵀ``."""
+    small = theta2 < 1e-6
+    a = 2.0 * half_sinc * half_sinc
+    b = np.where(
+        small,
+        1.0 / 6.0 - theta2 / 120.0,
+        (1.0 - 2.0 * half_sinc * cos_half) / np.where(small, 1.0, theta2),
+    )
+    out: Array = (b * h)[:, None, :] * h[None, :, :]
+    diag = 1.0 - b * theta2
+    ax, ay, az = a * h[0], a * h[1], a * h[2]
+    out[0, 0] += diag
+    out[1, 1] += diag
+    out[2, 2] += diag
+    out[0, 1] -= az
+    out[0, 2] += ay
+    out[1, 0] += az
+    out[1, 2] -= ax
+    out[2, 0] -= ay
+    out[2, 1] += ax
+    return out
+
+
+def _right_jacobian(phi: Array, t2: Array, a: Array, b: Array) -> Array:
+    """``(1 − b θ²) I − a [φ]× + b φ φᵀ`` (3, 3, J) by component."""
     out: Array = (b * phi)[:, None, :] * phi[None, :, :]
     diag = 1.0 - b * t2
     ax, ay, az = a * phi[0], a * phi[1], a * phi[2]
@@ -120,6 +174,29 @@ def right_jacobian_columns(phi: Array) -> Array:
     return out
 
 
+@dataclass
+class Steps:
+    """A chunk's intervals at one point: corrected raw rates ``u`` and ``h = ω dt`` (3, J_c),
+    the step quaternions ``q`` (4, J_c) with their ``θ²`` and ``sin(θ/2)/θ`` (J_c,), and the
+    rotations' scan from the chunk's start in its two factors (:func:`.integrate.block_scan`:
+    ``inner`` (4, J_c), ``before`` (4, blocks))."""
+
+    u: Array
+    h: Array
+    q: Array
+    theta2: Array
+    half_sinc: Array
+    inner: Array
+    before: Array
+
+
+def steps_at(x: Array, c: Chunk) -> Steps:
+    """The chunk's rates, steps and scan at ``x``."""
+    u, h = _rates(x, c)
+    q, theta2, half_sinc = step_parts(h)
+    return Steps(u, h, q, theta2, half_sinc, *block_scan(q, c.block))
+
+
 class Integrator:
     """Passes over the intervals of ``data`` (``Q`` the rate noise density) at points
     ``x = (vec M, b_0, …)``; the last :data:`KEEP` passes kept, and the rotations' scan of the
@@ -130,7 +207,7 @@ class Integrator:
         self.Q = noise_density
         self._chunks: list[Chunk] | None = None
         self._passes: OrderedDict[bytes, Pass] = OrderedDict()
-        self._scans: tuple[bytes, list[Array]] | None = None
+        self._scans: tuple[bytes, list[Steps]] | None = None
 
     def run(self, x: Array, level: int) -> Pass:
         """The pass at ``x`` of at least ``level``."""
@@ -149,19 +226,36 @@ class Integrator:
         M = x[:9].reshape(3, 3)
         density = M @ self.Q @ M.T
         for i, chunk in enumerate(self._chunks):
-            u, h = _rates(x, chunk)
-            cq = scans[i] if scans is not None else cumulative_columns(step_columns(h))
+            steps = scans[i] if scans is not None else steps_at(x, chunk)
             total[chunk.segments], sums[:, chunk.segments] = _chunk_pass(
-                chunk, u, h, cq, density, level
+                chunk, steps, density, level
             )
-            kept_scans.append(cq)
-        # the scans of a trial point only (the solver's next full pass is likely there)
-        self._scans = (key, kept_scans) if level == TURNS else None
+            kept_scans.append(steps)
+        # the last pass's steps: a trial point's serve the solver's next full pass, which is
+        # likely there, and a full pass's the path lengths at that point
+        self._scans = (key, kept_scans)
         done = Pass(level, total, sums)
         self._passes[key] = done
         while len(self._passes) > KEEP:
             self._passes.popitem(last=False)
         return done
+
+    def path_length(self, x: Array) -> Array:
+        """The angle (rad) each segment turns through at ``x``, ``Σ_j |ω_j| dt_j``: the steps'
+        angles summed (those of the last pass when it was at ``x``)."""
+        if self._chunks is None:
+            self._chunks = chunks_of(self.data)
+        key = x.tobytes()
+        kept = self._scans[1] if self._scans is not None and self._scans[0] == key else None
+        out = np.empty(len(self.data.first))
+        for i, chunk in enumerate(self._chunks):
+            if kept is not None:
+                theta2 = kept[i].theta2
+            else:
+                h = _rates(x, chunk)[1]
+                theta2 = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
+            out[chunk.segments] = np.add.reduceat(np.sqrt(theta2), chunk.first)
+        return out
 
 
 def _rates(x: Array, c: Chunk) -> tuple[Array, Array]:
@@ -173,31 +267,42 @@ def _rates(x: Array, c: Chunk) -> tuple[Array, Array]:
     return u, (M @ u) * c.dt
 
 
-def _chunk_pass(
-    c: Chunk, u: Array, h: Array, cq: Array, density: Array, level: int
-) -> tuple[Array, Array]:
-    """One chunk's turns (M_c, 3, 3) and sums (rows, M_c) from its rates ``u``, ``ω dt``
-    (``h``) and the rotations' scan ``cq`` (from the chunk's start)."""
-    prev = np.empty_like(cq)  # the rotation before each interval
+def _chunk_pass(c: Chunk, steps: Steps, density: Array, level: int) -> tuple[Array, Array]:
+    """One chunk's turns (M_c, 3, 3) and sums (rows, M_c) from its ``steps`` (rates, step
+    quaternions and the rotations' scan from the chunk's start)."""
+    inner, before, u, h = steps.inner, steps.before, steps.u, steps.h
+    # the rotation before each interval is prev[j] ⊗ before[block of j − 1]
+    prev = np.empty_like(inner)
     prev[:, 0] = (1.0, 0.0, 0.0, 0.0)
-    prev[:, 1:] = cq[:, :-1]
-    base = prev[:, c.first]
+    prev[:, 1:] = inner[:, :-1]
+    start = c.pair[c.first]  # the pair of each segment's first interval
+    base = multiply_columns(prev[:, c.first], before[:, c.pair_block[start]])
     base[1:] *= -1.0  # conjugate: relative to the segment's start
-    turn = np.moveaxis(matrix_columns(multiply_columns(cq[:, c.last], base)), 2, 0)
+    end = multiply_columns(inner[:, c.last], before[:, c.last // c.block])
+    turn = np.moveaxis(matrix_columns(multiply_columns(end, base)), 2, 0)
     sums = np.empty((SUM_ROWS[level], len(c.first)))
     if level == TURNS:
         return turn, sums
+    # P_{j−1} = prev[j] ⊗ (before[block] ⊗ base[segment]): the bracket once per pair
+    carry = multiply_columns(before[:, c.pair_block], base[:, c.pair_seg])
     for part in c.parts:
         j = slice(int(c.first[part][0]), int(c.last[part][-1]) + 1)
-        P = matrix_columns(multiply_columns(prev[:, j], base[:, c.seg[j]]))  # P_{j−1}
+        # P_{j−1}: products of unit quaternions, unit to round-off (not normalised again)
+        P = matrix_columns(multiply_columns(prev[:, j], carry[:, c.pair[j]]), unit=True)
         rows = np.empty((len(sums), j.stop - j.start))
+        dt = c.dt[j]
         G = (density @ P.reshape(3, -1)).reshape(P.shape)
-        rows[:9] = np.einsum("iaj,icj->acj", P, G).reshape(9, -1) * c.dt[j]  # dt Pᵀ (M Q Mᵀ) P
+        noise = rows[:9].reshape(3, 3, -1)
+        np.einsum("iaj,icj->acj", P, G, out=noise)
+        noise *= dt  # dt Pᵀ (M Q Mᵀ) P
         if level == JACOBIAN:
-            Jr = right_jacobian_columns(-h[:, j])
-            Dj = np.einsum("iaj,icj->acj", P, Jr) * c.dt[j]  # dt Pᵀ J_r(φ)
-            rows[9:36] = (Dj[:, :, None, :] * u[None, None, :, j]).reshape(27, -1)
-            rows[45:54] = (Dj * c.lam[j]).reshape(9, -1)
-            rows[36:45] = Dj.reshape(9, -1) - rows[45:54]
+            Jr = step_right_jacobian(h[:, j], steps.theta2[j], steps.half_sinc[j], steps.q[0, j])
+            D = rows[36:45].reshape(3, 3, -1)  # D_j = dt Pᵀ J_r(φ), then Σ D_j (1 − λ_j)
+            np.einsum("iaj,icj->acj", P, Jr, out=D)
+            D *= dt
+            np.multiply(D[:, :, None, :], u[None, None, :, j], out=rows[9:36].reshape(3, 3, 3, -1))
+            np.multiply(D, c.lam[j], out=rows[45:54].reshape(3, 3, -1))
         sums[:, part] = np.add.reduceat(rows, c.first[part] - j.start, axis=1)
+    if level == JACOBIAN:
+        sums[36:45] -= sums[45:54]  # Σ D_j (1 − λ_j) = Σ D_j − Σ D_j λ_j
     return turn, sums

@@ -36,6 +36,7 @@ from ..geometry.rotations import log_so3, quaternion_to_matrix
 
 __all__ = [
     "HOLDS",
+    "block_scan",
     "cumulative_columns",
     "cumulative_quaternions",
     "effective_time",
@@ -48,6 +49,7 @@ __all__ = [
     "runs",
     "segment_turns",
     "step_columns",
+    "step_parts",
     "step_quaternions",
 ]
 
@@ -172,49 +174,115 @@ def quaternion_multiply(p: Array, q: Array) -> Array:
 #: Steps composed one after another within a block of the scan (vectorised across blocks).
 SCAN_BLOCK = 64
 
+#: Scans of at most this many blocks are Hillis-Steele's (``log₂ m`` products of the whole
+#: array): fewer numpy calls than so few blocks would take.
+HILLIS_BLOCKS = 32
 
-def multiply_columns(p: Array, q: Array) -> Array:
+
+def multiply_columns(p: Array, q: Array, out: Array | None = None) -> Array:
     """:func:`quaternion_multiply` for quaternions stored by component, ``(4, ...)`` (each
-    component a contiguous row: the products run at the memory's pace)."""
+    component a contiguous row: the products run at the memory's pace); ``out`` (not ``p`` or
+    ``q``) receives them, each row summed in place in the order written."""
     pw, px, py, pz = p
     qw, qx, qy, qz = q
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[0] = pw * qw - px * qx - py * qy - pz * qz
-    out[1] = pw * qx + px * qw + py * qz - pz * qy
-    out[2] = pw * qy - px * qz + py * qw + pz * qx
-    out[3] = pw * qz + px * qy - py * qx + pz * qw
+    if out is None:
+        out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    o = np.multiply(pw, qw, out=out[0])
+    o -= px * qx
+    o -= py * qy
+    o -= pz * qz
+    o = np.multiply(pw, qx, out=out[1])
+    o += px * qw
+    o += py * qz
+    o -= pz * qy
+    o = np.multiply(pw, qy, out=out[2])
+    o -= px * qz
+    o += py * qw
+    o += pz * qx
+    o = np.multiply(pw, qz, out=out[3])
+    o += px * qy
+    o -= py * qx
+    o += pz * qw
     return out
 
 
 def cumulative_columns(steps: Array) -> Array:
     """:func:`cumulative_quaternions` for step quaternions stored by component, ``(4, m)``."""
     m = steps.shape[1]
-    if m > 2 * SCAN_BLOCK:
-        nb = -(-m // SCAN_BLOCK)
-        flat = np.empty((4, nb * SCAN_BLOCK))
-        flat[:, :m] = steps
-        flat[:, m:] = np.array([1.0, 0.0, 0.0, 0.0])[:, None]
-        # (4, position in block, block): each position's row contiguous across the blocks
-        blocks = np.ascontiguousarray(flat.reshape(4, nb, SCAN_BLOCK).transpose(0, 2, 1))
-        for j in range(1, SCAN_BLOCK):
-            blocks[:, j] = multiply_columns(blocks[:, j], blocks[:, j - 1])
-        before = cumulative_columns(blocks[:, -1, :-1])  # products of the whole blocks
-        blocks[:, :, 1:] = multiply_columns(blocks[:, :, 1:], before[:, None, :])
-        c = blocks.transpose(0, 2, 1).reshape(4, -1)[:, :m]
-    else:
-        c = np.array(steps, dtype=float)
-        d = 1
-        while d < m:
-            c[:, d:] = multiply_columns(c[:, d:], c[:, :-d])
-            d *= 2
-    # keep them unit (round-off of the products)
-    c /= np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
+    if m <= HILLIS_BLOCKS * SCAN_BLOCK:
+        return _hillis_steele(steps)
+    scan, before = _blocked(steps, SCAN_BLOCK)
+    # each block carried by the product of the blocks before it
+    blocks = np.empty_like(scan)
+    blocks[:, :, 0] = scan[:, :, 0]
+    multiply_columns(scan[:, :, 1:], before[:, None, 1:], out=blocks[:, :, 1:])
+    c = blocks.transpose(0, 2, 1).reshape(4, -1)[:, :m]
+    c /= np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])  # unit (round-off)
+    return c
+
+
+def block_scan(steps: Array, block: int = SCAN_BLOCK) -> tuple[Array, Array]:
+    """:func:`cumulative_columns` left in two factors, without the pass that multiplies them
+    out: the products within each block of ``block`` steps, in order (4, m), and the product
+    of the whole blocks before each block (4, nb): the scan at step ``k`` is
+    ``inner[k] ⊗ before[k // block]`` (for a caller that needs it at a few steps, or composes
+    it with another product anyway)."""
+    m = steps.shape[1]
+    nb = -(-m // block)
+    if m <= HILLIS_BLOCKS * block:
+        before = np.zeros((4, nb))
+        before[0] = 1.0
+        return _hillis_steele(steps), before
+    scan, before = _blocked(steps, block)
+    inner = scan.transpose(0, 2, 1).reshape(4, -1)[:, :m]
+    inner /= np.sqrt(
+        inner[0] * inner[0] + inner[1] * inner[1] + inner[2] * inner[2] + inner[3] * inner[3]
+    )
+    return inner, before
+
+
+def _blocked(steps: Array, block: int) -> tuple[Array, Array]:
+    """The products within each block (4, block, nb), composed in order for every block at
+    once, and the products of the whole blocks before each (4, nb), the identity first."""
+    m = steps.shape[1]
+    nb = -(-m // block)
+    flat = np.empty((4, nb * block))
+    flat[:, :m] = steps
+    flat[:, m:] = np.array([1.0, 0.0, 0.0, 0.0])[:, None]
+    # (4, position in block, block): each position's row contiguous across the blocks
+    blocks = np.ascontiguousarray(flat.reshape(4, nb, block).transpose(0, 2, 1))
+    scan = np.empty_like(blocks)
+    scan[:, 0] = blocks[:, 0]
+    for j in range(1, block):
+        multiply_columns(blocks[:, j], scan[:, j - 1], out=scan[:, j])
+    before = np.empty((4, nb))
+    before[:, 0] = (1.0, 0.0, 0.0, 0.0)
+    before[:, 1:] = cumulative_columns(scan[:, -1, :-1])  # products of the whole blocks
+    return scan, before
+
+
+def _hillis_steele(steps: Array) -> Array:
+    """The inclusive scan by Hillis-Steele: after the pass with stride ``d`` each column holds
+    the product of the ``2d`` steps ending at it."""
+    c = np.array(steps, dtype=float)
+    m = c.shape[1]
+    d = 1
+    while d < m:
+        c[:, d:] = multiply_columns(c[:, d:], c[:, :-d])
+        d *= 2
+    c /= np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])  # unit (round-off)
     return c
 
 
 def step_columns(h: Array) -> Array:
     """Step quaternions (4, J) of ``exp(−[h]×)`` for rotation vectors ``h = ω dt`` (3, J) by
     component (:func:`step_quaternions`)."""
+    return step_parts(h)[0]
+
+
+def step_parts(h: Array) -> tuple[Array, Array, Array]:
+    """:func:`step_columns` with what it computed on the way: the quaternions (4, J), the
+    squared angles ``θ²`` and ``sin(θ/2)/θ`` (J,) (the step's right Jacobian reuses them)."""
     theta2 = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
     theta = np.sqrt(theta2)
     small = theta < 1e-4
@@ -223,12 +291,14 @@ def step_columns(h: Array) -> Array:
     q = np.empty((4, h.shape[1]))
     q[0] = np.cos(0.5 * theta)
     q[1:] = -half_sinc * h
-    return q
+    return q, theta2, half_sinc
 
 
-def matrix_columns(q: Array) -> Array:
-    """Rotation matrices (3, 3, J) of quaternions (4, J) by component, normalised first."""
-    q = q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+def matrix_columns(q: Array, *, unit: bool = False) -> Array:
+    """Rotation matrices (3, 3, J) of quaternions (4, J) by component, normalised first
+    (``unit=True``: already unit to round-off, taken as they are)."""
+    if not unit:
+        q = q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     w, x, y, z = q
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
@@ -394,14 +464,22 @@ def _turns(
         t[span] = effective_time(t[span])  # bursts spread (or time going backwards refused)
     step = np.diff(t)[inner]
     rate = 0.5 * (w[1:] + w[:-1]) if hold == "midpoint" else w[:-1]
-    cq = cumulative_columns(step_columns((rate[inner] * step[:, None]).T))
-    prev = np.empty((4, cq.shape[1] + 1))
-    prev[:, 0] = (1.0, 0.0, 0.0, 0.0)
-    prev[:, 1:] = cq
-    ends = np.cumsum(length - 1)  # products before each span's first interval and at its end
-    base = prev[:, ends - (length - 1)]
+    # the scan in its two factors, multiplied out only where it is needed: before each span's
+    # first interval and at its end
+    inner_scan, before = block_scan(step_columns((rate[inner] * step[:, None]).T))
+    ends = np.cumsum(length - 1)  # positions in the scan with the identity put first
+
+    def scan_at(k: NDArray[np.int64]) -> Array:
+        if inner_scan.shape[1] == 0:  # no interval at all: every span a single row
+            return np.repeat(np.array([[1.0], [0.0], [0.0], [0.0]]), len(k), axis=1)
+        at = np.maximum(k - 1, 0)
+        out = multiply_columns(inner_scan[:, at], before[:, at // SCAN_BLOCK])
+        out[:, k == 0] = np.array([1.0, 0.0, 0.0, 0.0])[:, None]
+        return out
+
+    base = scan_at(ends - (length - 1))
     base[1:] *= -1.0
-    turn = matrix_columns(multiply_columns(prev[:, ends], base))
+    turn = matrix_columns(multiply_columns(scan_at(ends), base))
     out: Array = np.moveaxis(turn, 2, 0)
     return out
 
