@@ -36,6 +36,17 @@ def test_segment_turns_are_each_segment_integrated_alone(motion, hold):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "spans", [[(0, 40), (2999, 2999)], [(7, 7)], [(0, 0), (1, 1)], [(95, 110), (2999, 2999)]]
+)
+def test_spans_of_one_row_anywhere_are_the_identity(motion, spans):
+    """A span of one row last (its start past every interval), alone, or all such spans."""
+    t, w = motion
+    got = segment_turns(t, w, spans)
+    want = np.array([integrate(t[a : b + 1], w[a : b + 1]) for a, b in spans])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
 def test_segment_turns_refuses_time_going_backwards_and_spans_outside(motion):
     t, w = motion
     back = t.copy()

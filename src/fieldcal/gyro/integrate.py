@@ -459,9 +459,12 @@ def _turns(
     inner = np.ones(len(t) - 1, dtype=bool)  # the pairs of rows within one span
     inner[(start + length - 1)[:-1]] = False
     step = np.diff(t)
-    for k in np.flatnonzero(np.add.reduceat(inner & (step <= 0), start)[length > 1] > 0):
-        span = slice(int(start[length > 1][k]), int((start + length)[length > 1][k]))
-        t[span] = effective_time(t[span])  # bursts spread (or time going backwards refused)
+    # spans of one row have no interval (and may start past the last one): left out here
+    multi_start, multi_length = start[length > 1], length[length > 1]
+    if len(multi_start):
+        bursts = np.add.reduceat(inner & (step <= 0), multi_start) > 0
+        for s0, n in zip(multi_start[bursts].tolist(), multi_length[bursts].tolist(), strict=True):
+            t[s0 : s0 + n] = effective_time(t[s0 : s0 + n])  # bursts spread (or time refused)
     step = np.diff(t)[inner]
     rate = 0.5 * (w[1:] + w[:-1]) if hold == "midpoint" else w[:-1]
     # the scan in its two factors, multiplied out only where it is needed: before each span's
