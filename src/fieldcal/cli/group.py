@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import importlib
 import importlib.util
-import json
 import os
 import sys
 import warnings
@@ -315,8 +314,8 @@ def finish(cal: Calibration, *, summary_shown: bool) -> None:
 
 
 def write_json(path: str | Path, doc: dict[str, object]) -> None:
-    """``doc`` as indented JSON, written atomically."""
-    _files.write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    """``doc`` as indented JSON (a matrix row a line, as ``cal.json``), written atomically."""
+    _files.write_text(path, library.dumps(doc) + "\n")
 
 
 def check_matplotlib() -> None:

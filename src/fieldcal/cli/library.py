@@ -57,6 +57,7 @@ WHERE: dict[str, str] = {
     "Store": "..store",
     "calibrate_many": "..batch",
     "expand_logs": "..batch.manifest",
+    "dumps": "..serialize",
 }
 
 __all__ = [
@@ -82,6 +83,7 @@ __all__ = [
     "check_pyarrow",
     "drift_figure",
     "drift_table",
+    "dumps",
     "expand_logs",
     "expected_field",
     "key_reader",
@@ -129,6 +131,7 @@ if TYPE_CHECKING:
     from ..planning.next_pose import Targets, plan_poses, predicted_line
     from ..planning.warmer_poses import temperature_advice
     from ..reference import expected_field
+    from ..serialize import dumps
     from ..simulation.continuous import simulate_continuous
     from ..store import Store
 else:
