@@ -24,78 +24,141 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .pose_model import Problem, State, apply_step, jacobians, residuals, rotation_basis
+from .pose_model import Problem, State, apply_step, jacobian, residuals, rotation_basis
 
 Array = NDArray[np.float64]
 
 
 @dataclass
 class Normal:
-    """Blocks of the Gauss-Newton system ``JᵀJ`` and gradient ``Jᵀe`` at one point."""
+    """Blocks of the Gauss-Newton system ``JᵀJ`` and gradient ``Jᵀe`` at one point.
 
-    U: Array  # (N, p, p)
-    W: Array  # (N, p, G)
-    V: Array  # (G, G)
-    gp: Array  # (N, p)
-    gg: Array  # (G,)
-    Jp: Array
-    Jg: Array
+    Built as two products (:func:`gram`): ``UWg = Jpᵀ [Jp | Jg | e]`` per pose and
+    ``Vx = [Jg | e]ᵀ [Jg | e]``; the blocks are views of them."""
+
+    UWg: Array  # (N, p, p + G + 1): [U | W | gp]
+    Vx: Array  # (G + 1, G + 1): [[V, gg], [ggᵀ, J]]
+    J: Array  # (N, m, p + G + 1): [Jp | Jg | e]
     basis: Array | None
+
+    @property
+    def U(self) -> Array:  # noqa: N802
+        """(N, p, p)"""
+        return self.UWg[..., : self.p]
+
+    @property
+    def W(self) -> Array:  # noqa: N802
+        """(N, p, G)"""
+        return self.UWg[..., self.p : -1]
+
+    @property
+    def V(self) -> Array:  # noqa: N802
+        """(G, G)"""
+        return self.Vx[..., :-1, :-1]
+
+    @property
+    def gp(self) -> Array:
+        """(N, p)"""
+        return self.UWg[..., -1]
+
+    @property
+    def gg(self) -> Array:
+        """(G,)"""
+        return self.Vx[..., :-1, -1]
+
+    @property
+    def Jp(self) -> Array:  # noqa: N802
+        return self.J[..., : self.p]
+
+    @property
+    def Jg(self) -> Array:  # noqa: N802
+        return self.J[..., self.p : -1]
+
+    @property
+    def p(self) -> int:
+        return int(self.UWg.shape[-2])
+
+
+def gram(J: Array, p: int) -> tuple[Array, Array]:
+    """``Jpᵀ J`` per pose and the Gram matrix of the globals' and residuals' columns, for
+    ``J`` (..., N, m, p + G + 1) of one problem or many stacked (the same products)."""
+    UWg: Array = J[..., :p].swapaxes(-1, -2) @ J
+    flat = J.reshape(*J.shape[:-3], -1, J.shape[-1])[..., p:]
+    Vx: Array = flat.swapaxes(-1, -2) @ flat
+    return UWg, Vx
 
 
 def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
     basis = rotation_basis(problem, state)
-    Jp, Jg = jacobians(problem, state, basis)
-    G = problem.n_global
-    JpT = Jp.transpose(0, 2, 1)
-    flat = Jg.reshape(-1, G)
-    return Normal(
-        U=JpT @ Jp,
-        W=JpT @ Jg,
-        V=flat.T @ flat,
-        gp=(JpT @ e[:, :, None])[:, :, 0],
-        gg=e.ravel() @ flat,
-        Jp=Jp,
-        Jg=Jg,
-        basis=basis,
-    )
+    J = jacobian(problem, state, basis)
+    J[..., -1] = e
+    UWg, Vx = gram(J, J.shape[-1] - problem.n_global - 1)
+    return Normal(UWg, Vx, J, basis)
+
+
+def damped_inverse(U: Array, lam: float | Array) -> tuple[Array, Array]:
+    """Damped pose blocks (Marquardt: ``λ`` times the diagonal, plus a floor of 1e-12) and the
+    damping added; ``lam`` a float or, for stacked problems, shaped to broadcast (B, 1, 1)."""
+    p = U.shape[-1]
+    damped: Array = U.copy()
+    diagonal = damped.reshape(*U.shape[:-2], p * p)[..., :: p + 1]
+    damp_p: Array = (lam + 1e-12) * diagonal + 1e-12
+    diagonal += damp_p
+    return damped, damp_p
+
+
+def schur(
+    Uinv: Array, UWg: Array, Vx: Array, lam: float | Array
+) -> tuple[Array, Array, Array, Array]:
+    """``[Y | z] = U⁻¹ [W | gp]``, the damped reduced matrix S (Schur complement), its right
+    side ``Wᵀz − gg`` and the damping added to the globals' diagonal (one problem, or many
+    stacked with ``lam`` shaped (B, 1)). S is a view of a (G, G + 1) array."""
+    p = UWg.shape[-2]
+    G = Vx.shape[-1] - 1
+    lead = UWg.shape[:-3]
+    Wg = UWg[..., p:]
+    Yz: Array = Uinv @ Wg
+    WtYz = Wg[..., :G].reshape(*lead, -1, G).swapaxes(-1, -2) @ Yz.reshape(*lead, -1, G + 1)
+    SS: Array = Vx[..., :G, :] - WtYz  # [S | gg − Wᵀz] before the damping
+    dV = Vx.reshape(*lead, (G + 1) ** 2)[..., :: G + 2][..., :G]
+    damp_g: Array = (lam + 1e-12) * dV + 1e-12
+    SS.reshape(*lead, G * (G + 1))[..., :: G + 2] += damp_g
+    rhs: Array = -SS[..., G]
+    return Yz, SS[..., :G], rhs, damp_g
 
 
 def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array, Array, Array]:
     """Damped pose blocks' inverses, ``U⁻¹W``, the reduced matrix S (Schur complement) and the
     damping added to the pose and global diagonals (Marquardt: proportional to the diagonal)."""
-    n, p, _ = ne.U.shape
-    dU = ne.U.reshape(n, p * p)[:, :: p + 1]
-    damp_p = lam * dU + 1e-12 * (1.0 + dU)
-    damped = ne.U.copy()
-    damped.reshape(n, p * p)[:, :: p + 1] += damp_p
+    damped, damp_p = damped_inverse(ne.U, lam)
     Uinv = cast(Array, np.linalg.inv(damped))
-    Y = Uinv @ ne.W
-    G = ne.V.shape[0]
-    dV = ne.V.ravel()[:: G + 1]
-    damp_g = lam * dV + 1e-12 * (1.0 + dV)
-    S = ne.V - ne.W.reshape(-1, G).T @ Y.reshape(-1, G)
-    S.ravel()[:: G + 1] += damp_g
-    return Uinv, Y, S, damp_p, damp_g
+    Yz, S, _, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam)
+    return Uinv, Yz[..., :-1], S, damp_p, damp_g
+
+
+def predicted(dg: Array, dp: Array, gg: Array, gp: Array, damp_g: Array, damp_p: Array) -> Array:
+    """The decrease of J the linearised model predicts for the step (one problem or many):
+    ``J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = δᵀ(Λδ − g)`` since ``(H + Λ)δ = −g``."""
+    lead = dg.shape[:-1]
+    tp = damp_p * dp - gp
+    out: Array = np.vecdot(damp_g * dg - gg, dg) + np.vecdot(
+        tp.reshape(*lead, -1), dp.reshape(*lead, -1)
+    )
+    return out
 
 
 def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     """The damped step and the decrease of J it predicts (linearised model)."""
-    Uinv, Y, S, damp_p, damp_g = reduce(ne, lam)
-    G = ne.V.shape[0]
-    z = (Uinv @ ne.gp[:, :, None])[:, :, 0]
-    rhs = ne.W.reshape(-1, G).T @ z.ravel() - ne.gg
+    damped, damp_p = damped_inverse(ne.U, lam)
+    Uinv = cast(Array, np.linalg.inv(damped))
+    Yz, S, rhs, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam)
     dg = _solve(S, rhs)
-    dp = Y @ dg
-    dp += z
+    ext = np.empty(len(dg) + 1)
+    ext[:-1] = dg
+    ext[-1] = 1.0
+    dp = Yz @ ext  # Y dg + z
     dp = -dp
-    # J(0) − J_lin(δ) = −2δᵀg − δᵀHδ = −δᵀg + δᵀΛδ since (H + Λ)δ = −g
-    flat_dp, flat_gp = dp.ravel(), ne.gp.ravel()
-    pred = (
-        -(dg @ ne.gg + flat_dp @ flat_gp)
-        + (damp_g * dg) @ dg
-        + (damp_p.ravel() * flat_dp) @ flat_dp
-    )
+    pred = predicted(dg, dp, ne.gg, ne.gp, damp_g, damp_p)
     return dg, dp, float(pred)
 
 

@@ -31,13 +31,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .levenberg import Result
+from .levenberg import Result, damped_inverse, gram, predicted, schur
 from .pose_model import Problem, State
 from .stacked import (
     Stack,
     StackState,
     apply_steps,
-    jacobians,
+    jacobian,
     residuals,
     rotation_bases,
     stack,
@@ -65,47 +65,28 @@ class Request:
 
 @dataclass
 class _Normal:
-    """:class:`.levenberg.Normal` of B problems (without the Jacobians)."""
+    """:class:`.levenberg.Normal`'s products of B problems (without the Jacobians)."""
 
-    U: Array  # (B, N, p, p)
-    W: Array  # (B, N, p, G)
-    V: Array  # (B, G, G)
-    gp: Array  # (B, N, p)
-    gg: Array  # (B, G)
+    UWg: Array  # (B, N, p, p + G + 1): [U | W | gp]
+    Vx: Array  # (B, G + 1, G + 1): [[V, gg], [ggᵀ, J]]
     basis: Array | None  # (B, N, 3, 2)
 
     def take(self, idx: Index) -> _Normal:
-        return _Normal(
-            self.U[idx],
-            self.W[idx],
-            self.V[idx],
-            self.gp[idx],
-            self.gg[idx],
-            None if self.basis is None else self.basis[idx],
-        )
+        return _Normal(self.UWg[idx], self.Vx[idx], None if self.basis is None else self.basis[idx])
 
     def put(self, idx: Index, other: _Normal) -> None:
-        self.U[idx], self.W[idx], self.V[idx] = other.U, other.W, other.V
-        self.gp[idx], self.gg[idx] = other.gp, other.gg
+        self.UWg[idx], self.Vx[idx] = other.UWg, other.Vx
         if self.basis is not None and other.basis is not None:
             self.basis[idx] = other.basis
 
 
 def _normal(sp: Stack, st: StackState, e: Array) -> _Normal:
-    """:func:`.levenberg.normal_equations` of each problem."""
+    """:func:`.levenberg.normal_equations` of each problem (the same products)."""
     basis = rotation_bases(sp, st)
-    Jp, Jg = jacobians(sp, st, basis)
-    B, G = Jg.shape[0], Jg.shape[3]
-    JpT = Jp.transpose(0, 1, 3, 2)
-    flat = Jg.reshape(B, -1, G)
-    return _Normal(
-        U=JpT @ Jp,
-        W=JpT @ Jg,
-        V=flat.transpose(0, 2, 1) @ flat,
-        gp=(JpT @ e[..., None])[..., 0],
-        gg=(e.reshape(B, 1, -1) @ flat)[:, 0],
-        basis=basis,
-    )
+    J = jacobian(sp, st, basis)
+    J[..., -1] = e
+    UWg, Vx = gram(J, J.shape[-1] - sp.first.n_global - 1)
+    return _Normal(UWg, Vx, basis)
 
 
 def _costs(e: Array) -> Array:
@@ -135,22 +116,13 @@ def _inverses(damped: Array) -> tuple[Array, list[int]]:
 def _steps(ne: _Normal, lam: Array) -> tuple[Array, Array, Array, list[int]]:
     """:func:`.levenberg.solve_step` of each problem: the damped steps (B, G), (B, N, p), the
     predicted decreases (B,) and the problems whose system is singular."""
-    B, n, p, _ = ne.U.shape
-    G = ne.V.shape[1]
-    dU = ne.U.reshape(B, n, p * p)[:, :, :: p + 1]
-    damp_p = lam[:, None, None] * dU + 1e-12 * (1.0 + dU)
-    damped = ne.U.copy()
-    damped.reshape(B, n, p * p)[:, :, :: p + 1] += damp_p
+    B, _, p, _ = ne.UWg.shape
+    G = ne.Vx.shape[1] - 1
+    damped, damp_p = damped_inverse(ne.UWg[..., :p], lam[:, None, None])
     Uinv, bad = _inverses(damped)
-    Y = Uinv @ ne.W
-    dV = ne.V.reshape(B, G * G)[:, :: G + 1]
-    damp_g = lam[:, None] * dV + 1e-12 * (1.0 + dV)
-    Wt = ne.W.reshape(B, -1, G).transpose(0, 2, 1)
-    S = ne.V - Wt @ Y.reshape(B, -1, G)
-    S.reshape(B, G * G)[:, :: G + 1] += damp_g
-    z = (Uinv @ ne.gp[..., None])[..., 0]
-    rhs = (Wt @ z.reshape(B, -1, 1))[..., 0] - ne.gg
-    dg = np.zeros((B, G))
+    Yz, S, rhs, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam[:, None])
+    ext = np.zeros((B, G + 1))
+    ext[:, -1] = 1.0
     for b in range(B):
         if bad and b in bad:
             continue
@@ -158,16 +130,11 @@ def _steps(ne: _Normal, lam: Array) -> tuple[Array, Array, Array, list[int]]:
         if info > 0:
             bad.append(b)
         else:
-            dg[b] = x
-    dp = (Y @ dg[:, None, :, None])[..., 0]
-    dp += z
+            ext[b, :-1] = x
+    dp = (Yz @ ext[:, None, :, None])[..., 0]  # Y dg + z
     dp = -dp
-    flat_dp, flat_gp = dp.reshape(B, -1), ne.gp.reshape(B, -1)
-    pred = (
-        -(np.vecdot(dg, ne.gg) + np.vecdot(flat_dp, flat_gp))
-        + np.vecdot(damp_g * dg, dg)
-        + np.vecdot(damp_p.reshape(B, -1) * flat_dp, flat_dp)
-    )
+    dg = ext[:, :-1]
+    pred = predicted(dg, dp, ne.Vx[:, :G, G], ne.UWg[..., -1], damp_g, damp_p)
     return dg, dp, pred, bad
 
 

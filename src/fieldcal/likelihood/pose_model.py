@@ -23,12 +23,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration
-from ..geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
+from ..geometry.frames import GRAVITY, magnetic_reference
 from ..stats.pose_stats import PoseStats
 
 Array = NDArray[np.float64]
@@ -47,10 +48,21 @@ def _sym_map() -> Array:
 
 
 SYM_MAP = _sym_map()
+#: The parameter of each row-major entry of a symmetric gain: ``d[SYM_INDEX]`` is ``SYM_MAP @ d``
+SYM_INDEX = np.argmax(SYM_MAP, axis=1)
+SYM_INDEX.setflags(write=False)
 # Levi-Civita symbol: (K hat(v))[a, k] = -Σ K[a, j] ε[j, k, l] v[l]
 _EPS = np.zeros((3, 3, 3))
 for _a, _b, _c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     _EPS[_a, _b, _c], _EPS[_a, _c, _b] = 1.0, -1.0
+#: ``v @ HAT_T`` is ``hat(v)ᵀ = −hat(v)`` row-major (9 entries): one product for a batch
+HAT_T = _EPS.transpose(2, 0, 1).reshape(3, 9).copy()
+HAT_T.setflags(write=False)
+#: ``ω @ HAT`` is ``hat(ω)`` row-major
+HAT = -HAT_T
+HAT.setflags(write=False)
+_I9 = np.eye(3).ravel()
+_I9.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -207,8 +219,9 @@ def field(problem: Problem, sensor: str, dip: float) -> Array:
 
 
 def _whiten(linv: Array, x: Array) -> Array:
-    """``L_i⁻¹ x_i`` for a batch of vectors (N, 3)."""
-    return np.einsum("nij,nj->ni", linv, x)
+    """``L_i⁻¹ x_i`` for a batch of vectors (M, 3) (one product; :mod:`.stacked` the same)."""
+    out: Array = (linv @ x[:, :, None])[:, :, 0]
+    return out
 
 
 def bias_drift(problem: Problem, state: State, sensor: str) -> Array | None:
@@ -247,59 +260,112 @@ def rotation_basis(problem: Problem, state: State) -> Array | None:
 def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Array, Array]:
     """Analytic Jacobians of :func:`residuals`: per-pose rotation block (N, m, 3 or 2) and
     global block (N, m, G), with m = 3·#sensors rows per pose."""
-    n, G = problem.n, problem.n_global
-    m = 3 * len(problem.sensors)
-    Jp = np.empty((n, m, 3))
-    Jg = np.zeros((n, m, G))
+    J = jacobian(problem, state, basis)
+    P = J.shape[-1] - problem.n_global - 1
+    return J[..., :P], J[..., P:-1]
+
+
+def jacobian(problem: Problem, state: State, basis: Array | None) -> Array:
+    """:func:`jacobians` in one array (N, m, P + G + 1): rotation columns, globals and a last
+    column left zero (the residuals' place in :func:`.levenberg.normal_equations`)."""
+    P = 3 if basis is None else basis.shape[-1]
+    key = ("jacobian", P)
+    template = problem.memo.get(key)
+    if template is None:  # the constant columns (biases, temperature terms), once
+        template = np.zeros((problem.n, 3 * len(problem.sensors), P + problem.n_global + 1))
+        fill_constant(problem, template, problem.linv, problem.temp_powers)
+        template.setflags(write=False)
+        problem.memo[key] = template
+    J = cast(Array, template).copy()
+    Kw = {s: problem.linv[s] @ state.gains[s] for s in problem.sensors}
+    if problem.joint:
+        # R f for both sensors and R dh/d(dip) in one product (:mod:`.stacked` the same)
+        # columns GRAVITY, magnetic_reference(dip), magnetic_derivative(dip) (frames.py)
+        c, s = np.cos(state.dip), np.sin(state.dip)
+        g = GRAVITY
+        F = np.array([[g[0], c, -s], [g[1], 0.0, 0.0], [g[2], s, c]])
+        VV = state.rotations @ F
+        v = {s: VV[:, :, k] for k, s in enumerate(problem.sensors)}
+        fill_jacobian(problem, J, problem.linv, Kw, v, VV[:, :, 2], basis)
+    else:
+        v = {s: state.rotations @ field(problem, s, state.dip) for s in problem.sensors}
+        fill_jacobian(problem, J, problem.linv, Kw, v, None, basis)
+    return J
+
+
+def fill_constant(problem: Problem, J: Array, linv: dict[str, Array], powers: Array | None) -> None:
+    """Write the Jacobian's constant columns (biases, temperature coefficients) of M poses
+    into ``J`` (M, m, P + G + 1): they depend on the whitening and temperatures only."""
+    g = J.shape[-1] - problem.n_global - 1
     for k, s in enumerate(problem.sensors):
         rows = slice(3 * k, 3 * k + 3)
-        linv = problem.linv[s]
-        f = field(problem, s, state.dip)
-        v = state.rotations @ f
-        Kw = linv @ state.gains[s]  # (N, 3, 3)
-        # d(K exp(ω^) R f)/dω = −K hat(R f): written with ε to stay one matrix product
-        E = np.einsum("naj,jkl->nakl", Kw, _EPS).reshape(n, 9, 3)
-        Jp[:, rows, :] = (E @ v[:, :, None]).reshape(n, 3, 3)
-        # d(K v)/dK[j, k] = e_j v_k
-        JK = np.einsum("naj,nk->najk", linv, v).reshape(n, 3, 9)
-        if problem.symmetric(s):
-            JK = JK @ SYM_MAP
-        Jg[:, rows, problem.gain_slice[s]] = JK
-        Jg[:, rows, problem.bias_slice[s]] = linv
+        L = linv[s]
+        bs = problem.bias_slice[s]
+        J[:, rows, g + bs.start : g + bs.stop] = L
         order = problem.temp_order(s)
-        if order and problem.temp_powers is not None:
+        if order and powers is not None:
             # d(Σ_k c_k d_i^k)/dc_k[j] = d_i^k e_j: coefficient (k, j) at 3k + j of the slice
-            P = problem.temp_powers[:, :order]
-            Jg[:, rows, problem.temp_slice[s]] = np.einsum("naj,nk->nakj", linv, P).reshape(
-                n, 3, 3 * order
-            )
-        if s == "mag" and problem.joint:
-            dh = state.rotations @ magnetic_derivative(state.dip)
-            Jg[:, rows, problem.dip_index] = np.einsum("naj,nj->na", Kw, dh)
+            ts = problem.temp_slice[s]
+            Pk = powers[:, :order]
+            J[:, rows, g + ts.start : g + ts.stop] = (
+                L[:, :, None, :] * Pk[:, None, :, None]
+            ).reshape(-1, 3, 3 * order)
+
+
+def fill_jacobian(
+    problem: Problem,
+    J: Array,
+    linv: dict[str, Array],
+    Kw: dict[str, Array],
+    v: dict[str, Array],
+    dv: Array | None,
+    basis: Array | None,
+) -> None:
+    """Write the analytic Jacobian's varying columns of M poses (of one problem or of many
+    stacked, flat) into ``J`` (M, m, P + G + 1), whose constant columns :func:`fill_constant`
+    wrote: ``[:P]`` the rotations' (3 or, with a ``basis`` (M, 3, 2), 2), the gains' and the
+    dip's. ``linv``, ``Kw = L⁻¹K`` (M, 3, 3) and ``v = R f`` (M, 3) per sensor;
+    ``dv = R dh/d(dip)`` (M, 3)."""
+    P = 3 if basis is None else basis.shape[-1]
+    Jp = J[..., :3] if basis is None else np.empty((len(J), J.shape[1], 3))
+    g = P  # the globals' first column
+    for k, s in enumerate(problem.sensors):
+        rows = slice(3 * k, 3 * k + 3)
+        # d(K exp(ω^) R f)/dω = −K hat(R f) = K hat(v)ᵀ: hat built by one product
+        np.matmul(Kw[s], (v[s] @ HAT_T).reshape(-1, 3, 3), out=Jp[:, rows, :])
+        # d(K v)/dK[j, k] = e_j v_k
+        L = linv[s]
+        gs = problem.gain_slice[s]
+        gain = J[:, rows, g + gs.start : g + gs.stop]
+        if problem.symmetric(s):
+            JK = (L[:, :, :, None] * v[s][:, None, None, :]).reshape(-1, 3, 9)
+            np.matmul(JK, SYM_MAP, out=gain)
+        else:
+            np.multiply(L[:, :, :, None], v[s][:, None, None, :], out=gain.reshape(-1, 3, 3, 3))
+        if s == "mag" and dv is not None and problem.dip_index is not None:
+            d = g + problem.dip_index
+            np.matmul(Kw[s], dv[:, :, None], out=J[:, rows, d : d + 1])
     if basis is not None:
-        Jp = Jp @ basis
-    return Jp, Jg
+        J[..., :P] = Jp @ basis
 
 
 def exp_map(omega: Array) -> Array:
-    """Rodrigues' formula for a batch (N, 3), ``R = (1 − bθ²) I + a ω^ + b ωωᵀ``; the same as
-    :func:`fieldcal.rotations.exp_so3`, written entry-wise because it runs every LM step."""
-    th2 = np.einsum("ni,ni->n", omega, omega)
-    small = th2 < 1e-8
-    th = np.sqrt(np.where(small, 1.0, th2))
-    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
-    R = b[:, None, None] * omega[:, :, None] * omega[:, None, :]
+    """Rodrigues' formula for a batch (M, 3), ``R = (1 − bθ²) I + a ω^ + b ωωᵀ``; the same as
+    :func:`fieldcal.rotations.exp_so3`, written in a few batched operations because it runs
+    every LM step (also for many problems stacked, :mod:`.stacked`)."""
+    th2 = np.vecdot(omega, omega)
+    if th2.min() >= 1e-8:  # no small angle (and no NaN): the series is not needed
+        th = np.sqrt(th2)
+        a = np.sin(th) / th
+        b = (1.0 - np.cos(th)) / (th * th)
+    else:
+        small = th2 < 1e-8
+        th = np.sqrt(np.where(small, 1.0, th2))
+        a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
+        b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
     d = 1.0 - b * th2
-    for k in range(3):
-        R[:, k, k] += d
-    x, y, z = (a[:, None] * omega).T
-    R[:, 0, 1] -= z
-    R[:, 1, 0] += z
-    R[:, 0, 2] += y
-    R[:, 2, 0] -= y
-    R[:, 1, 2] -= x
-    R[:, 2, 1] += x
+    R = (b[:, None] * omega)[:, :, None] * omega[:, None, :]
+    R += ((a[:, None] * omega) @ HAT + d[:, None] * _I9).reshape(-1, 3, 3)
     return R
 
 
@@ -308,7 +374,7 @@ def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Arra
     gains, biases, temps = {}, {}, {}
     for s in problem.sensors:
         d = dg[problem.gain_slice[s]]
-        dK = (SYM_MAP @ d).reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
+        dK = d[SYM_INDEX].reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
         gains[s] = state.gains[s] + dK
         biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
         if s in problem.temp_slice:

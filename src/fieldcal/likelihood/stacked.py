@@ -24,7 +24,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.frames import GRAVITY
-from .pose_model import _EPS, SYM_MAP, Problem, State
+from .pose_model import (
+    SYM_INDEX,
+    Problem,
+    State,
+    _whiten,
+    exp_map,
+    fill_constant,
+    fill_jacobian,
+)
 
 Array = NDArray[np.float64]
 Index = NDArray[np.intp]
@@ -33,6 +41,7 @@ __all__ = [
     "Stack",
     "StackState",
     "apply_steps",
+    "jacobian",
     "jacobians",
     "layout",
     "residuals",
@@ -234,7 +243,7 @@ def residuals(sp: Stack, st: StackState) -> Array:
         order = sp.first.temp_order(s)
         if order and sp.powers is not None:
             raw += sp.powers[:, :, :order] @ st.temps[s]
-        w = np.einsum("nij,nj->ni", sp.linv[s].reshape(-1, 3, 3), raw.reshape(-1, 3))
+        w = _whiten(sp.linv[s].reshape(-1, 3, 3), raw.reshape(-1, 3))
         out.append(w.reshape(B, n, 3))
     return out[0] if len(out) == 1 else np.concatenate(out, axis=2)
 
@@ -268,58 +277,40 @@ def jacobians(sp: Stack, st: StackState, basis: Array | None) -> tuple[Array, Ar
     -------
     tuple of ndarray
     """
+    J = jacobian(sp, st, basis)
+    P = J.shape[-1] - sp.first.n_global - 1
+    return J[..., :P], J[..., P:-1]
+
+
+def jacobian(sp: Stack, st: StackState, basis: Array | None) -> Array:
+    """:func:`.pose_model.jacobian` of each problem, (B, N, m, P + G + 1), by the same
+    :func:`.pose_model.fill_constant` and :func:`.pose_model.fill_jacobian` on the B·N poses."""
     p = sp.first
     B, n = st.rotations.shape[:2]
-    bn, G, m = B * n, p.n_global, 3 * len(p.sensors)
-    Jp = np.empty((bn, m, 3))
-    Jg = np.zeros((bn, m, G))
-    for k, s in enumerate(p.sensors):
-        rows = slice(3 * k, 3 * k + 3)
-        linv = sp.linv[s].reshape(bn, 3, 3)
-        v = _rotate(st.rotations, _fields(sp, s, st.dip))
-        Kw = sp.linv[s] @ st.gains[s][:, None]  # (B, N, 3, 3)
-        v, Kw = v.reshape(bn, 3), Kw.reshape(bn, 3, 3)
-        E = np.einsum("naj,jkl->nakl", Kw, _EPS).reshape(bn, 9, 3)
-        Jp[:, rows, :] = (E @ v[:, :, None]).reshape(bn, 3, 3)
-        JK = np.einsum("naj,nk->najk", linv, v).reshape(bn, 3, 9)
-        if p.symmetric(s):
-            JK = JK @ SYM_MAP
-        Jg[:, rows, p.gain_slice[s]] = JK
-        Jg[:, rows, p.bias_slice[s]] = linv
-        order = p.temp_order(s)
-        if order and sp.powers is not None:
-            P = sp.powers[:, :, :order].reshape(bn, order)
-            Jg[:, rows, p.temp_slice[s]] = np.einsum("naj,nk->nakj", linv, P).reshape(
-                bn, 3, 3 * order
-            )
-        if s == "mag" and p.joint:
-            dh = np.stack([-np.sin(st.dip), np.zeros_like(st.dip), np.cos(st.dip)], axis=1)
-            dv = _rotate(st.rotations, dh).reshape(bn, 3)
-            Jg[:, rows, p.dip_index] = np.einsum("naj,nj->na", Kw, dv)
-    if basis is not None:
-        Jp = Jp @ basis.reshape(bn, 3, 2)
-    return Jp.reshape(B, n, m, -1), Jg.reshape(B, n, m, G)
-
-
-def _exp_map(omega: Array) -> Array:
-    """:func:`.pose_model.exp_map` (Rodrigues), the same operations over (M, 3)."""
-    th2 = np.einsum("ni,ni->n", omega, omega)
-    small = th2 < 1e-8
-    th = np.sqrt(np.where(small, 1.0, th2))
-    a = np.where(small, 1.0 - th2 / 6.0, np.sin(th) / th)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(th)) / (th * th))
-    R = b[:, None, None] * omega[:, :, None] * omega[:, None, :]
-    d = 1.0 - b * th2
-    for k in range(3):
-        R[:, k, k] += d
-    x, y, z = (a[:, None] * omega).T
-    R[:, 0, 1] -= z
-    R[:, 1, 0] += z
-    R[:, 0, 2] += y
-    R[:, 2, 0] -= y
-    R[:, 1, 2] -= x
-    R[:, 2, 1] += x
-    return R
+    bn = B * n
+    linv = {s: sp.linv[s].reshape(bn, 3, 3) for s in p.sensors}
+    Kw = {s: (sp.linv[s] @ st.gains[s][:, None]).reshape(bn, 3, 3) for s in p.sensors}
+    flat_basis = None if basis is None else basis.reshape(bn, 3, 2)
+    P = 3 if basis is None else 2
+    J = np.zeros((bn, 3 * len(p.sensors), P + p.n_global + 1))
+    fill_constant(p, J, linv, None if sp.powers is None else sp.powers.reshape(bn, -1))
+    if p.joint:
+        dip = st.dip
+        F = np.stack(
+            [
+                _fields(sp, "accel", dip),
+                _fields(sp, "mag", dip),
+                np.stack([-np.sin(dip), np.zeros_like(dip), np.cos(dip)], axis=1),
+            ],
+            axis=2,
+        )
+        VV = (st.rotations @ F[:, None]).reshape(bn, 3, 3)
+        v = {s: VV[:, :, k] for k, s in enumerate(p.sensors)}
+        fill_jacobian(p, J, linv, Kw, v, VV[:, :, 2], flat_basis)
+    else:
+        v = {s: _rotate(st.rotations, _fields(sp, s, st.dip)).reshape(bn, 3) for s in p.sensors}
+        fill_jacobian(p, J, linv, Kw, v, None, flat_basis)
+    return J.reshape(B, n, *J.shape[1:])
 
 
 def apply_steps(sp: Stack, st: StackState, dg: Array, dp: Array, basis: Array | None) -> StackState:
@@ -346,7 +337,7 @@ def apply_steps(sp: Stack, st: StackState, dg: Array, dp: Array, basis: Array | 
     for s in p.sensors:
         d = dg[:, p.gain_slice[s]]
         sym = p.symmetric(s)
-        dK = (SYM_MAP @ d[:, :, None]).reshape(B, 3, 3) if sym else d.reshape(B, 3, 3)
+        dK = d[:, SYM_INDEX].reshape(B, 3, 3) if sym else d.reshape(B, 3, 3)
         gains[s] = st.gains[s] + dK
         biases[s] = st.biases[s] + dg[:, p.bias_slice[s]]
         if s in p.temp_slice:
@@ -354,5 +345,5 @@ def apply_steps(sp: Stack, st: StackState, dg: Array, dp: Array, basis: Array | 
     dip = st.dip + dg[:, p.dip_index] if p.dip_index is not None else st.dip + 0.0
     flat = dp.reshape(B * n, -1)
     omega = flat if basis is None else np.einsum("nij,nj->ni", basis.reshape(-1, 3, 2), flat)
-    rotations = _exp_map(omega).reshape(B, n, 3, 3) @ st.rotations
+    rotations = exp_map(omega).reshape(B, n, 3, 3) @ st.rotations
     return StackState(gains, biases, dip, rotations, temps)
