@@ -56,7 +56,8 @@ print(len(sim.columns["t"]))
 #: The default path with pyarrow's reader and bulk formatting off: ``python -c NUMPY_ONLY ...``
 #: takes the command line's arguments.
 NUMPY_ONLY = (
-    "import fieldcal.logs.text as t, fieldcal.logs.apply as a; t.ARROW_MIN_BYTES = 1 << 62; "
+    "import fieldcal.logs.text as t, fieldcal.logs.apply as a; "
+    "t.ARROW_MIN_BYTES = t.ARROW_MIN_BYTES_LOADED = 1 << 62; "
     "a.ARROW_MIN_ROWS = 1 << 62; from fieldcal.cli import main; main()"
 )
 
@@ -91,7 +92,7 @@ import numpy as np, pyarrow.csv
 import fieldcal.logs.text as text
 from fieldcal.logs.readers import read_table
 def fieldcal_read(arrow):
-    text.ARROW_MIN_BYTES = 0 if arrow else 1 << 62
+    text.ARROW_MIN_BYTES = text.ARROW_MIN_BYTES_LOADED = 0 if arrow else 1 << 62
     read_table(sys.argv[1])
 calls = {
     "pyarrow.csv.read_csv": lambda: pyarrow.csv.read_csv(sys.argv[1]),

@@ -310,9 +310,14 @@ _SETTINGS = settings(
 
 def _blocks(block: int, arrow: bool):
     """Blocks of ``block`` bytes, parsed by pyarrow (``arrow``, as large files are) or numpy."""
-    return mock.patch.multiple(
-        text_module, BLOCK_BYTES=block, ARROW_MIN_BYTES=0 if arrow else 1 << 62
-    )
+    return mock.patch.multiple(text_module, BLOCK_BYTES=block, **_parser(arrow))
+
+
+def _parser(arrow: bool) -> dict[str, int]:
+    """The thresholds that send every file to pyarrow (``arrow``) or to numpy's parser, whether
+    or not this process has loaded pyarrow already."""
+    at = 0 if arrow else 1 << 62
+    return {"ARROW_MIN_BYTES": at, "ARROW_MIN_BYTES_LOADED": at}
 
 
 @_SETTINGS
@@ -348,7 +353,7 @@ def test_the_fast_path_reads_well_formed_logs(tmp_path, delimiter, arrow):
         lines.append(delimiter.join(["", "", "-0", ""]))  # empty fields: NaN, and an empty label
         values = np.vstack([values, [np.nan, -0.0, np.nan]])
     path = _write(tmp_path / "log.csv", "# banner\n" + "\n".join(lines) + "\n")
-    with mock.patch.object(text_module, "ARROW_MIN_BYTES", 0 if arrow else 1 << 62):
+    with mock.patch.multiple(text_module, **_parser(arrow)):
         if arrow and delimiter != " ":  # numpy's parser is not needed
             with mock.patch.object(text_module, "_block", side_effect=AssertionError):
                 table = _fast(path)
@@ -386,13 +391,30 @@ def test_pyarrow_paths_do_not_load_pandas(tmp_path):
     assert out.split() == ["['pyarrow.compute',", "'pyarrow.csv']"]
 
 
+def test_a_small_log_goes_to_pyarrow_once_it_is_loaded(tmp_path):
+    """Below ARROW_MIN_BYTES a log is numpy's unless this process has loaded pyarrow's reader
+    (a batch worker does): then pyarrow reads it, the same table."""
+    pytest.importorskip("pyarrow.csv")  # loaded now, as in a batch worker
+    rows = "".join(f"{i},{i / 7},-{i}\n" for i in range(200))
+    path = _write(tmp_path / "log.csv", f"t,ax,ay\n{rows}")
+    assert path.stat().st_size < text_module.ARROW_MIN_BYTES
+    with mock.patch.object(text_module, "_block", side_effect=AssertionError):
+        table = _fast(path)  # numpy's parser not needed
+    _same(table, read_careful(path))
+    with mock.patch.object(text_module, "ARROW_MIN_BYTES_LOADED", 1 << 62):
+        spy = mock.patch.object(text_module, "_block", wraps=text_module._block)
+        with spy as block:
+            _same(_fast(path), table)
+        assert block.called
+
+
 @pytest.mark.parametrize("arrow", [False, True])
 def test_quoted_names_stay_on_the_fast_path(tmp_path, arrow):
     """A header quoting its names (R's write.csv, pyarrow) is read by the fast path; a quote
     left open on it (which joins the lines below for the careful reader) is not."""
     rows = "".join(f"{i},{i / 4},-{i}\n" for i in range(20))
     path = _write(tmp_path / "log.csv", f'"t","a,x","ay"\n{rows}')
-    with mock.patch.object(text_module, "ARROW_MIN_BYTES", 0 if arrow else 1 << 62):
+    with mock.patch.multiple(text_module, **_parser(arrow)):
         table = _fast(path)
         _same(table, read_careful(path))
         assert table.names == ["t", "a,x", "ay"]

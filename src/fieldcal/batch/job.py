@@ -47,6 +47,7 @@ from ..errors import InputError
 from ..likelihood.fleet import run_together
 from ..likelihood.fleet import seconds as _clock
 from ..logs import Log, load_log
+from ..logs.arrow_parser import pyarrow_module
 from ..output import exports as export_formats
 from ..pipeline import LogSettings, document, run_log
 from ..settings import ReadSettings
@@ -317,6 +318,10 @@ def run_tasks(tasks: Sequence[Task], group: int = GROUP) -> list[JobResult]:
         In the order of ``tasks``; each row's ``seconds`` is the log's own time (its turns and
         its share of the stepped LM runs, then its files).
     """
+    if len(tasks) > 1:
+        # several logs: pyarrow's CSV reader pays its import back (the reader takes it for any
+        # size once it is loaded, parsing a small log in about half numpy's time)
+        pyarrow_module("pyarrow.csv")
     if group <= 1 or len(tasks) <= 1:
         return [run_task(task) for task in tasks]
     with _blas_one_thread():  # once for all: the threads' own limits then change nothing
