@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 import fieldcal
+from fieldcal.batch import COLUMNS
 
 #: relative tolerance of "the same result" (issue 24); absolute floor for values that are zero
 RTOL, ATOL = 1e-9, 1e-12
@@ -46,3 +47,13 @@ def assert_same_file(a: Any, b: Any) -> None:
     """Two calibration files (``cal.json``) with the same numbers to :data:`RTOL`."""
     with open(a, encoding="utf-8") as fa, open(b, encoding="utf-8") as fb:
         assert_close_tree(json.load(fa), json.load(fb))
+
+
+def assert_same_rows(a: Any, b: Any) -> None:
+    """Two batches' summary rows alike, column by column to :data:`RTOL` (``seconds`` aside:
+    the time a log took)."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        for name in COLUMNS:
+            if name != "seconds":
+                assert_close_tree(x[name], y[name], name)

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from _close import assert_close_tree, assert_same_file
+from _close import assert_same_file, assert_same_rows
 from click.testing import CliRunner
 
 import fieldcal
@@ -68,15 +68,6 @@ def logs(tmp_path):
     return [_log(folder / f"unit{i}.csv", seed=i) for i in range(3)]
 
 
-def _same_rows(a, b, skip=("seconds",)):
-    assert len(a) == len(b)
-    for x, y in zip(a, b, strict=True):
-        for name in COLUMNS:
-            if name in skip:
-                continue
-            assert_close_tree(x[name], y[name], name)
-
-
 def test_each_log_is_calibrated_as_calibrate_does(logs, tmp_path):
     out = tmp_path / "out"
     result = calibrate_many([str(p) for p in logs], out=out, jobs=1, created=CREATED)
@@ -126,7 +117,7 @@ def test_every_executor_writes_the_same_files(logs, tmp_path):
             logs, out=tmp_path / "dask", scheduler=cluster.scheduler_address, created=CREATED
         )
     for name in ("processes", "dask"):
-        _same_rows(runs["sequential"].rows, runs[name].rows)
+        assert_same_rows(runs["sequential"].rows, runs[name].rows)
         for device in ("unit0", "unit1", "unit2"):
             assert_same_file(
                 tmp_path / "sequential" / device / "cal.json", tmp_path / name / device / "cal.json"
@@ -205,7 +196,7 @@ def test_resume_keeps_done_logs_and_redoes_the_rest(logs, tmp_path):
     # the kept rows are the earlier ones, wall time and all; unit1 was redone
     assert again.rows[0] == first.rows[0] and again.rows[2] == first.rows[2]
     assert again.rows[1]["seconds"] != first.rows[1]["seconds"]
-    _same_rows(first.rows, again.rows)
+    assert_same_rows(first.rows, again.rows)
     assert set(again.calibrations) == {r["log"] for r in first.rows}
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from _close import assert_close_tree, assert_same_calibration, assert_same_file
+from _close import assert_same_calibration, assert_same_file, assert_same_rows
 
 import fieldcal
-from fieldcal.batch import COLUMNS, calibrate_many
+from fieldcal.batch import calibrate_many
 from fieldcal.batch.executors import chunks
 from fieldcal.batch.job import Task
 from fieldcal.errors import InputError
@@ -37,21 +37,11 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     return out
 
 
-def _same_rows(a: tuple[dict, ...], b: tuple[dict, ...]) -> None:  # type: ignore[type-arg]
-    assert len(a) == len(b)
-    for x, y in zip(a, b, strict=True):
-        for name in COLUMNS:
-            if name == "seconds":
-                continue
-            u, v = x[name], y[name]
-            assert_close_tree(u, v, name)
-
-
 @pytest.mark.parametrize("group", [3, 32])
 def test_together_is_one_at_a_time(logs: list[str], tmp_path: Path, group: int) -> None:
     one = calibrate_many(logs, out=tmp_path / "one", jobs=1, group=1, created=CREATED)
     many = calibrate_many(logs, out=tmp_path / "many", jobs=1, group=group, created=CREATED)
-    _same_rows(one.rows, many.rows)
+    assert_same_rows(one.rows, many.rows)
     assert one.calibrations.keys() == many.calibrations.keys()
     for log, cal in one.calibrations.items():
         assert_same_calibration(cal, many.calibrations[log])
@@ -94,7 +84,7 @@ def test_real_recordings_together(shared_data, tmp_path: Path) -> None:  # type:
     logs.append(str(shared_data("imucal") / "example_ferraris_session.csv"))
     one = calibrate_many(logs, out=tmp_path / "one", jobs=1, group=1, created=CREATED)
     many = calibrate_many(logs, out=tmp_path / "many", jobs=1, created=CREATED)
-    _same_rows(one.rows, many.rows)
+    assert_same_rows(one.rows, many.rows)
     assert not many.rows[0]["error"] and not many.rows[1]["error"]
     assert many.rows[2]["error"]  # 14 poses in 6 orientations: refused, one row
     for row in one.rows[:2]:
