@@ -19,15 +19,12 @@ down-weighted for the body's acceleration). What the pose path adds after a fit
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 
 from ..calibration import Calibration
 from ..reference import FieldReference
-from .accuracy import predict_accuracy
-from .handedness import decide
+from .fitting import conclude
 from .targets import Targets
-from .verdict import ReferenceCheck, judge
 
 __all__ = ["METHOD_OWN", "trust_continuous"]
 
@@ -70,28 +67,14 @@ def trust_continuous(
         With ``accuracy``, ``verdict``, ``field_reference`` and the options ``mag_mirrored``,
         ``mag_handedness`` (``"stated"`` or ``"reference"``).
     """
-    hand = decide(cal, bool(mag_mirrored), reference, dip_allowance_deg)
-    check = None
-    if reference is not None:
-        check = ReferenceCheck(reference, dip_allowance_deg, bool(mag_mirrored), hand.decided)
-    result = cal.with_mag_handedness(hand.mirrored)
-    accuracy = predict_accuracy(result)
     given = {s: (1.0, m) for s, m in (magnitudes or {}).items() if m}  # gains in those units
     own = cal.verdict.reasons if cal.verdict is not None else ()
-    verdict = judge(
-        result,
-        None,
-        None,
-        accuracy,
-        check,
+    return conclude(
+        cal,
+        bool(mag_mirrored),
+        reference,
+        dip_allowance_deg,
         targets=targets,
         magnitudes=given,
         given=[r for r in own if r.code not in METHOD_OWN],
-    )
-    return dataclasses.replace(
-        result,
-        accuracy=accuracy,
-        verdict=verdict,
-        field_reference=reference,
-        options={**result.options, **hand.options},
     )

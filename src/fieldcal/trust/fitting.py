@@ -25,7 +25,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc
 
-from ..calibration import Calibration, ParameterCovariance, RejectedPose, SensorCalibration
+from ..calibration import (
+    Calibration,
+    ParameterCovariance,
+    Reason,
+    RejectedPose,
+    SensorCalibration,
+)
 from ..methods import METHODS, Method
 from ..reference import FieldReference
 from ..settings import FitSettings, TrustSettings
@@ -243,14 +249,51 @@ def fit_trusted(
     )
     if time_ordered:  # consecutive pieces of one motion: measured correlation widens the bars
         result = widen_for_correlation(result)
-    # the handedness is a choice of gauge: make it before the verdict reads the dip
-    hand = decide(result, mag_mirrored, reference, trust.dip_allowance_deg)
+    return conclude(
+        result,
+        mag_mirrored,
+        reference,
+        trust.dip_allowance_deg,
+        current=current,
+        found=found,
+        targets=targets,
+        magnitudes=magnitudes,
+    )
+
+
+def conclude(
+    result: Calibration,
+    mag_mirrored: bool,
+    reference: FieldReference | None,
+    dip_allowance_deg: float,
+    *,
+    current: PoseStats | None = None,
+    found: Findings | None = None,
+    targets: Targets | None = None,
+    magnitudes: Mapping[str, tuple[float, float]] | None = None,
+    given: Sequence[Reason] = (),
+) -> Calibration:
+    """The trust path's last steps, for the pose fits and the continuous fit alike: the
+    magnetometer's handedness (a choice of gauge, so made before the verdict reads the dip;
+    :func:`.handedness.decide`), the predicted accuracy and the verdict (:func:`.verdict.judge`
+    with ``current``, ``found``, ``targets``, ``magnitudes`` and ``given``), attached with the
+    reference and the handedness options."""
+    hand = decide(result, mag_mirrored, reference, dip_allowance_deg)
     check = None
     if reference is not None:
-        check = ReferenceCheck(reference, trust.dip_allowance_deg, mag_mirrored, hand.decided)
+        check = ReferenceCheck(reference, dip_allowance_deg, mag_mirrored, hand.decided)
     result = result.with_mag_handedness(hand.mirrored)
     accuracy = predict_accuracy(result)
-    verdict = judge(result, current, found, accuracy, check, targets=targets, magnitudes=magnitudes)
+    verdict = judge(
+        result,
+        current,
+        found,
+        accuracy,
+        check,
+        targets=targets,
+        magnitudes=magnitudes,
+        given=given,
+    )
     return dataclasses.replace(
         result,
         accuracy=accuracy,
