@@ -33,8 +33,8 @@ from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin
 from .initial import start
 from .model import N_PARAMS, Data, State, accel_block, mag_block
 from .observability import Identifiability, check_motion, identifiability, motion_advice
-from .preintegration import HOLDS, GyroFactors, thermal_factors
-from .solver import Prior, Weights, levenberg_marquardt
+from .preintegration import HOLDS
+from .solver import Prior, Weights, levenberg_marquardt, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
 from .uncertainty import BATCH, NAMES, kept_shares, sandwich
@@ -108,25 +108,11 @@ def _gyro_variance(state: State, data: Data, w: Weights, rate_var: float, kept: 
     moment estimate also takes in the field sensors' correlated errors, which the trajectory
     passes on to the gyroscope's residuals (BROAD: 6 times), and trusting the gyroscope less
     for them made the trajectory and the gains worse against the motion capture."""
-    f = _gyro(state, data)
+    f = state_factors(state, data)
     mean_square = float(np.mean(w.gyro * np.sum(f.residual**2, axis=1)) / 3.0)
     white = gyro_rate_variance(data.gyro, state.gyro_gain)
     misfit = rate_var * mean_square / kept
     return misfit if misfit > GYRO_MISFIT**2 * white else white
-
-
-def _gyro(state: State, data: Data) -> GyroFactors:
-    """The gyroscope's factors, its bias following temperature when it has terms."""
-    return thermal_factors(
-        state.rotations,
-        data.time,
-        data.gyro,
-        state.gyro_gain,
-        state.gyro_bias,
-        data.hold,
-        state.temps.get("gyro"),
-        data.temperature,
-    )
 
 
 def _prior(state: State) -> Prior:
@@ -445,7 +431,7 @@ def _fit(
     state = _canonical(state)
     ra = accel_block(state, data.accel, data.temperature).residual
     rm = mag_block(state, data.mag, data.temperature).residual
-    f = _gyro(state, data)
+    f = state_factors(state, data)
     cov, crb, _ = sandwich(state, data, w, batch)
     widening = {
         group: float(np.sqrt(np.mean((cov.stds(names) / np.maximum(crb.stds(names), 1e-300)) ** 2)))

@@ -110,7 +110,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
         if len(sub.rotations) > 1:
-            rg = _factors(sub, part).residual
+            rg = state_factors(sub, part).residual
             total += float(np.sum(w.gyro[lo : lo + len(rg)] * np.sum(rg**2, 1)))
     prior = 0.0 if w.prior is None else w.prior.cost(state.vector())
     return 0.5 * total + prior
@@ -178,7 +178,7 @@ def _assemble(
         total += 0.5 * float(np.sum(weight * np.sum(r**2, 1)))
     if len(sub.rotations) < 2:
         return total
-    f = _factors(sub, part)
+    f = state_factors(sub, part)
     k = len(f.dt)  # factors lo .. lo + k − 1, between epochs j and j + 1
     wg = w.gyro[lo : lo + k]
     sl = columns(sub, "gyro")
@@ -200,8 +200,9 @@ def _assemble(
     return total + 0.5 * float(np.sum(wg * np.sum(f.residual**2, 1)))
 
 
-def _factors(sub: State, part: Data) -> GyroFactors:
-    """The gyroscope's factors of a chunk, the bias following temperature if it has terms."""
+def state_factors(sub: State, part: Data) -> GyroFactors:
+    """The gyroscope's factors of ``part`` (a chunk or the whole log) at ``sub``, the bias
+    following temperature when it has terms."""
     return thermal_factors(
         sub.rotations,
         part.time,

@@ -47,8 +47,8 @@ from .model import (
     columns,
     mag_block,
 )
-from .preintegration import GyroFactors, thermal_factors
-from .solver import Normal, Weights, normal_equations, schur
+from .preintegration import GyroFactors
+from .solver import Normal, Weights, normal_equations, schur, state_factors
 
 __all__ = [
     "BATCH",
@@ -143,16 +143,7 @@ class _Jacobians:
 
 def _jacobians(state: State, data: Data) -> _Jacobians:
     d = data.temperature
-    f = thermal_factors(
-        state.rotations,
-        data.time,
-        data.gyro,
-        state.gyro_gain,
-        state.gyro_bias,
-        data.hold,
-        state.temps.get("gyro"),
-        d,
-    )
+    f = state_factors(state, data)
     cols = {s: columns(state, s) for s in ("accel", "mag", "gyro")}
     return _Jacobians(
         accel_block(state, data.accel, d),
