@@ -50,6 +50,7 @@ from ..logs import Log, load_log
 from ..logs.arrow_parser import pyarrow_module
 from ..output import exports as export_formats
 from ..pipeline import LogSettings, document, run_log
+from ..serialize import dumps
 from ..settings import ReadSettings
 from .manifest import device_id, fallback_device
 from .table import COLUMN_TYPES, error_row, row_for
@@ -345,7 +346,7 @@ def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> st
     # between two of these files redoes the log on --resume
     with contextlib.suppress(FileNotFoundError):
         (folder / ROW_FILE).unlink()
-    _files.write_text(folder / CAL_FILE, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    _files.write_text(folder / CAL_FILE, dumps(doc) + "\n")  # as `fieldcal calibrate` writes it
     errors = []
     for fmt in task.exports:
         try:
@@ -397,7 +398,7 @@ def _claim(folder: Path, device: str, task: Task) -> None:
 # ----------------------------------------------------------------------------- rows on disk
 def _row_json(row: Mapping[str, Any]) -> str:
     clean = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in row.items()}
-    return json.dumps(clean, indent=1, allow_nan=False) + "\n"
+    return dumps(clean, indent=1) + "\n"
 
 
 def read_row(path: Path) -> dict[str, Any] | None:

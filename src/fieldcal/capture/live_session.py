@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib.util
-import json
 import math
 import time
 import warnings
@@ -52,6 +51,7 @@ from ..planning.next_pose import (
     unreachable,
 )
 from ..planning.warmer_poses import temperature_advice
+from ..serialize import dumps
 from ..trust.targets import DEFAULT_TARGETS
 from ..trust.verdict import with_dropped_lines
 from .feeds import End, Line, LineSource, PartialLine
@@ -549,7 +549,7 @@ class CaptureSession:
             document = final.document()
             document["capture"] = self.record(reason)
             path = self.folder / "cal.json"
-            _files.write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")
+            _files.write_text(path, dumps(document) + "\n")  # as `fieldcal calibrate` writes it
             files.append(path)
         except InputError as exc:
             error = str(exc)
