@@ -14,15 +14,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from fieldcal.geometry.rotations import random_rotations
-from fieldcal.likelihood.levenberg import normal_equations, solve_step
+from fieldcal.likelihood.levenberg import damped_inverse, normal_equations, solve_step
 from fieldcal.likelihood.pose_model import (
     Problem,
     State,
     build_problem,
     exp_map,
+    field,
     jacobians,
+    model_readings,
+    raw_residuals,
     residuals,
     rotation_basis,
+    whiten,
 )
 from fieldcal.simulation.warmup import simulate_warmup
 from fieldcal.stats.pose_stats import summarize
@@ -114,3 +118,49 @@ def test_exp_map_is_rodrigues_on_both_sides_of_the_series_switch() -> None:
         # entries are O(1): a few roundings of the trigonometric terms
         assert np.abs(R - expected).max() <= 1e-14
         assert np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max() <= 1e-14
+
+
+@pytest.mark.parametrize("p", [3, 2])
+def test_the_closed_form_damped_inverse_is_the_inverse_and_flags_singular_blocks(p: int) -> None:
+    """The adjugate inverses of the damped pose blocks equal LAPACK's (np.linalg.inv) for two
+    problems stacked with their own λ; a block with a zero determinant marks its problem
+    singular (np.linalg.inv raises on it) and leaves the other problem alone."""
+    rng = np.random.default_rng(11 + p)
+    A = rng.standard_normal((2, 4, 5, p))
+    U = A.transpose(0, 1, 3, 2) @ A  # Jpᵀ Jp: symmetric positive definite, condition ~ 10
+    # diagonal −1 is unchanged by damping at λ = 0 (−1e-12 + 1e-12 = 0 exactly), so this block
+    # stays singular: [[-1, 1], [1, -1]] (with −1 below it for p = 3)
+    U[1, 2] = np.diag(np.full(p, -1.0))
+    U[1, 2, 0, 1] = U[1, 2, 1, 0] = 1.0
+    lam = np.array([1e-3, 0.0])[:, None, None]
+    inverse, damp_p, singular = damped_inverse(U, lam)
+    assert singular.tolist() == [False, True]
+    damped = U.copy()
+    idx = np.arange(p)
+    damped[..., idx, idx] += damp_p
+    _close(damp_p, (lam + 1e-12) * U[..., idx, idx] + 1e-12)
+    _close(inverse[0], np.linalg.inv(damped[0]))
+    _close(inverse[1, [0, 1, 3]], np.linalg.inv(damped[1, [0, 1, 3]]))
+    assert np.isnan(inverse[1, 2]).all()
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.inv(damped[1, 2])
+    # one problem alone: a scalar λ, no problem axis
+    alone, _, flag = damped_inverse(U[0], 1e-3)
+    _close(alone, inverse[0])
+    assert not flag
+
+
+@pytest.mark.parametrize("kind", range(len(KINDS)))
+def test_the_raw_residuals_whitened_are_the_residuals(kind: int) -> None:
+    """``e = L⁻¹ r``: the raw residuals (from the model's readings ``K R f``) whiten to the
+    residuals, and ``L e`` with the Cholesky factor of each pose mean's covariance gives them
+    back (what the pose table reports in raw units)."""
+    problem, state = _problem_and_state(kind, 13 + kind)
+    readings = model_readings(problem, state)
+    raw = raw_residuals(problem, state, readings.copy())  # it turns readings into residuals
+    e = residuals(problem, state)
+    _close(whiten(problem, raw), e)
+    for k, s in enumerate(problem.sensors):
+        chol = np.linalg.inv(problem.linv[s])
+        _close(raw[k], (chol @ e[:, 3 * k : 3 * k + 3, None])[..., 0])
+        _close(readings[k], state.rotations @ field(problem, s, state.dip) @ state.gains[s].T)

@@ -10,12 +10,14 @@ residual (outlier tests).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg.lapack import dgesv as _dgesv
 
 from ..calibration import Calibration, ParameterCovariance
 from ..stats.pose_stats import PoseStats, SensorStats
@@ -30,11 +32,29 @@ Array = NDArray[np.float64]
 class Uncertainty:
     """Cramér-Rao covariance of the named parameters, the reduced system's condition number and
     the hat matrix's diagonal blocks (N, m, m): how much of each pose's whitened residual the
-    fit itself absorbs (leverage)."""
+    fit itself absorbs (leverage).
 
-    covariance: ParameterCovariance
-    condition: float
+    Built from the globals' covariance ``C`` and the Jacobi-scaled reduced matrix; the named
+    covariance and the condition number are derived on first use (the trust path's
+    intermediate evaluations need the leverage only)."""
+
     leverage: Array
+    globals_covariance: Array  # (G, G): C = S⁻¹
+    scaled_reduced: Array  # (G, G): S with unit diagonal, for the condition number
+    problem: Problem
+
+    @functools.cached_property
+    def covariance(self) -> ParameterCovariance:
+        """Covariance of the named parameters, ``T C Tᵀ``."""
+        names, T = named_map(self.problem)
+        Cn = T @ self.globals_covariance @ T.T
+        return ParameterCovariance(tuple(names), 0.5 * (Cn + Cn.T))
+
+    @functools.cached_property
+    def condition(self) -> float:
+        """S's condition number after Jacobi scaling (large: the poses do not determine every
+        parameter)."""
+        return _condition(self.scaled_reduced)
 
     def dof_share(self, problem: Problem) -> dict[str, float]:
         """Expected share of Eq. 8's J per sensor, ``3N − tr(H_ss)``."""
@@ -80,15 +100,39 @@ class PoseCovariance:
 def global_covariance(ne: Normal) -> tuple[Array, Array, Array, float]:
     """``S⁻¹`` (CRB of the globals), the pose blocks' inverses, ``U⁻¹W``, and S's condition
     number after Jacobi scaling (large: the poses do not determine every parameter)."""
+    C, Uinv, Y, Sn = _covariance(ne)
+    return C, Uinv, Y, _condition(Sn)
+
+
+def _covariance(ne: Normal) -> tuple[Array, Array, Array, Array]:
+    """:func:`global_covariance` with the Jacobi-scaled S in place of its condition number."""
     Uinv, Y, S, _, _ = reduce(ne, 0.0)
     d = np.sqrt(np.maximum(np.diag(S), 1e-300))
-    Sn = S / np.outer(d, d)
+    scale = d[:, None] * d  # np.outer's numbers, without its wrapper
+    Sn = S / scale
+    # np.linalg.inv is LAPACK's gesv against the identity: called directly (its wrapper costs
+    # more than the 22x22 solve); a singular S raises as np.linalg.inv does
+    _, _, inverse, info = _dgesv(Sn, _identity(len(Sn)))
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    C = inverse / scale
+    return 0.5 * (C + C.T), Uinv, Y, Sn
+
+
+def _condition(Sn: Array) -> float:
     ev = np.linalg.eigvalsh(Sn)
-    cond = float(ev[-1] / max(ev[0], 1e-300))
-    C = np.linalg.inv(Sn) / np.outer(d, d)
-    return 0.5 * (C + C.T), Uinv, Y, cond
+    return float(ev[-1] / max(ev[0], 1e-300))
 
 
+@functools.cache
+def _identity(n: int) -> Array:
+    eye = np.eye(n)
+    eye.setflags(write=False)
+    return eye
+
+
+#: names and the map of :func:`named_map` (the type built once: it is checked per call)
+_NamedMap = tuple[list[str], Array]
 #: The named map of each parameter layout seen (a layout is a few integers: the same for every
 #: problem of a session, whatever its noise model or subset of poses).
 _NAMED_MAPS: dict[tuple[object, ...], tuple[list[str], Array]] = {}
@@ -117,7 +161,7 @@ def named_map(problem: Problem) -> tuple[list[str], Array]:
                 _NAMED_MAPS.clear()
             cached = _NAMED_MAPS[layout] = (names, T)
         problem.memo["named_map"] = cached
-    names, T = cast(tuple[list[str], Array], cached)
+    names, T = cast(_NamedMap, cached)
     return list(names), T
 
 
@@ -162,14 +206,8 @@ def leverage_blocks(ne: Normal, C: Array, Uinv: Array, Y: Array) -> Array:
 
 def uncertainty(problem: Problem, ne: Normal) -> Uncertainty:
     """Covariance of the named parameters (CRB), condition number and leverage at a point."""
-    C, Uinv, Y, cond = global_covariance(ne)
-    names, T = named_map(problem)
-    Cn = T @ C @ T.T
-    return Uncertainty(
-        ParameterCovariance(tuple(names), 0.5 * (Cn + Cn.T)),
-        cond,
-        leverage_blocks(ne, C, Uinv, Y),
-    )
+    C, Uinv, Y, Sn = _covariance(ne)
+    return Uncertainty(leverage_blocks(ne, C, Uinv, Y), C, Sn, problem)
 
 
 def wishart_std(cov: Array, dof: int) -> Array:

@@ -24,7 +24,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .pose_model import Problem, State, apply_step, jacobian, residuals, rotation_basis
+from .pose_model import (
+    Problem,
+    State,
+    apply_step,
+    jacobian,
+    residuals,
+    rotated_fields,
+    rotation_basis,
+)
 
 Array = NDArray[np.float64]
 
@@ -88,23 +96,71 @@ def gram(J: Array, p: int) -> tuple[Array, Array]:
     return UWg, Vx
 
 
-def normal_equations(problem: Problem, state: State, e: Array) -> Normal:
-    basis = rotation_basis(problem, state)
-    J = jacobian(problem, state, basis)
+def normal_equations(problem: Problem, state: State, e: Array, VV: Array | None = None) -> Normal:
+    """The blocks at ``state`` with residuals ``e`` (``VV``: :func:`.pose_model.rotated_fields`
+    at the state when the caller has it, as the solver has from the residuals)."""
+    if VV is None:
+        VV = rotated_fields(problem, state)
+    basis = rotation_basis(problem, state, VV)
+    J = jacobian(problem, state, basis, VV)
     J[..., -1] = e
     UWg, Vx = gram(J, J.shape[-1] - problem.n_global - 1)
     return Normal(UWg, Vx, J, basis)
 
 
-def damped_inverse(U: Array, lam: float | Array) -> tuple[Array, Array]:
-    """Damped pose blocks (Marquardt: ``λ`` times the diagonal, plus a floor of 1e-12) and the
-    damping added; ``lam`` a float or, for stacked problems, shaped to broadcast (B, 1, 1)."""
+def _adjugate_index() -> NDArray[np.intp]:
+    """(4, 9) positions in a row-major 3x3 block of the four factors of each entry of its
+    adjugate (row-major): ``adj[j, i] = A[i1, j1] A[i2, j2] − A[i1, j2] A[i2, j1]`` with
+    ``i1, i2 = i + 1, i + 2`` (mod 3), the cofactor of ``A[i, j]`` (cyclic indices carry the
+    sign)."""
+    out = np.empty((4, 9), dtype=np.intp)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            out[:, 3 * j + i] = (3 * i1 + j1, 3 * i2 + j2, 3 * i1 + j2, 3 * i2 + j1)
+    return out
+
+
+_ADJ3 = _adjugate_index()
+#: 2x2 adjugate ``[[d, −b], [−c, a]]`` of ``[a, b, c, d]``: a gather and a sign
+_ADJ2 = np.array([3, 1, 2, 0])
+_SIGN2 = np.array([1.0, -1.0, -1.0, 1.0])
+
+
+def damped_inverse(U: Array, lam: float | Array) -> tuple[Array, Array, NDArray[np.bool_]]:
+    """Inverses of the damped pose blocks (Marquardt: ``λ`` times the diagonal, plus a floor of
+    1e-12), the damping added and which problems have a singular block (an exact zero
+    determinant, where ``np.linalg.inv`` raises; its inverse is NaN). ``U`` (..., N, p, p) of
+    one problem or many stacked with ``lam`` shaped to broadcast (B, 1, 1).
+
+    The blocks are 3x3 (2x2 with one sensor): the adjugate over the determinant (a gather and a
+    few products for all of them) costs less than ``np.linalg.inv``'s wrapper."""
     p = U.shape[-1]
-    damped: Array = U.copy()
-    diagonal = damped.reshape(*U.shape[:-2], p * p)[..., :: p + 1]
-    damp_p: Array = (lam + 1e-12) * diagonal + 1e-12
+    lead = U.shape[:-2]
+    # the blocks flat (M, p²), a copy to damp: U is a view of [U | W | gp], which reshape
+    # copies; a contiguous U (a caller's own array) is copied explicitly
+    damped: Array = U.reshape(-1, p * p)
+    if np.may_share_memory(damped, U):
+        damped = damped.copy()
+    diagonal = damped[:, :: p + 1].reshape(*lead, p)
+    damp_p: Array = diagonal * (lam + 1e-12)
+    damp_p += 1e-12
     diagonal += damp_p
-    return damped, damp_p
+    if p == 3:
+        F = damped[:, _ADJ3]  # (M, 4, 9)
+        adj = F[:, 0] * F[:, 1]
+        adj -= F[:, 2] * F[:, 3]
+    else:
+        adj = damped[:, _ADJ2] * _SIGN2
+    det: Array = np.vecdot(damped[:, :p], adj[:, ::p])  # the first row · its cofactors
+    singular = np.zeros(lead[:-1], dtype=bool)
+    if np.count_nonzero(det) < det.size:
+        zero = det == 0.0
+        singular = zero.reshape(lead).any(axis=-1)
+        det = np.where(zero, np.nan, det)  # NaN, not a division warning
+    adj /= det[:, None]
+    return adj.reshape(U.shape), damp_p, singular
 
 
 def schur(
@@ -130,8 +186,9 @@ def schur(
 def reduce(ne: Normal, lam: float) -> tuple[Array, Array, Array, Array, Array]:
     """Damped pose blocks' inverses, ``U⁻¹W``, the reduced matrix S (Schur complement) and the
     damping added to the pose and global diagonals (Marquardt: proportional to the diagonal)."""
-    damped, damp_p = damped_inverse(ne.U, lam)
-    Uinv = cast(Array, np.linalg.inv(damped))
+    Uinv, damp_p, singular = damped_inverse(ne.U, lam)
+    if singular:
+        raise np.linalg.LinAlgError("Singular matrix")
     Yz, S, _, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam)
     return Uinv, Yz[..., :-1], S, damp_p, damp_g
 
@@ -149,8 +206,9 @@ def predicted(dg: Array, dp: Array, gg: Array, gp: Array, damp_g: Array, damp_p:
 
 def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     """The damped step and the decrease of J it predicts (linearised model)."""
-    damped, damp_p = damped_inverse(ne.U, lam)
-    Uinv = cast(Array, np.linalg.inv(damped))
+    Uinv, damp_p, singular = damped_inverse(ne.U, lam)
+    if singular:
+        raise np.linalg.LinAlgError("Singular matrix")
     Yz, S, rhs, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam)
     dg = _solve(S, rhs)
     ext = np.empty(len(dg) + 1)
@@ -158,7 +216,9 @@ def solve_step(ne: Normal, lam: float) -> tuple[Array, Array, float]:
     ext[-1] = 1.0
     dp = Yz @ ext  # Y dg + z
     dp = -dp
-    pred = predicted(dg, dp, ne.gg, ne.gp, damp_g, damp_p)
+    # :func:`predicted` of one problem, with 1-D dot products (no batch axes to handle)
+    tp = damp_p * dp - ne.gp
+    pred = (damp_g * dg - ne.gg) @ dg + tp.ravel() @ dp.ravel()
     return dg, dp, float(pred)
 
 
@@ -231,12 +291,13 @@ def solve_alone(
     known_minimum: float | None = None,
 ) -> Result:
     """:func:`levenberg_marquardt` in this thread, whatever service is set."""
-    e = residuals(problem, state)
+    VV = rotated_fields(problem, state)  # R_i f_s: the residuals' and the Jacobian's
+    e = residuals(problem, state, VV)
     cost = _cost(e)
     nu = 2.0
     converged = False
     it = 0
-    ne = normal_equations(problem, state, e)
+    ne = normal_equations(problem, state, e, VV)
     last_rho = 0.0
     while it < max_iter:
         it += 1
@@ -254,12 +315,13 @@ def solve_alone(
             lam *= 10.0
             continue
         trial = apply_step(problem, state, dg, dp, ne.basis)
-        e_new = residuals(problem, trial)
+        VV_new = rotated_fields(problem, trial)
+        e_new = residuals(problem, trial, VV_new)
         cost_new = _cost(e_new)
         gain = cost - cost_new
         rho = gain / pred if pred > 0 else -1.0
         if rho > 0 and np.isfinite(cost_new):
-            state, e, last_rho = trial, e_new, rho
+            state, e, VV, last_rho = trial, e_new, VV_new, rho
             lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
             cost = cost_new
@@ -269,7 +331,7 @@ def solve_alone(
             if gain <= tol * (1.0 + cost) or quadratic or cost < 1e-300:
                 converged = True
                 break
-            ne = normal_equations(problem, state, e)
+            ne = normal_equations(problem, state, e, VV)
         else:
             if pred <= tol * 1e-3 * (1.0 + cost) and lam < 1e-3:
                 converged = True  # the model predicts nothing left to gain

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,30 +95,13 @@ def _costs(e: Array) -> Array:
     return out
 
 
-def _inverses(damped: Array) -> tuple[Array, list[int]]:
-    """The damped pose blocks' inverses (B, N, p, p) and the problems with a singular block
-    (their inverses are left as NaN)."""
-    try:
-        inverse = cast(Array, np.linalg.inv(damped))
-        return inverse, []
-    except np.linalg.LinAlgError:
-        out = np.full_like(damped, np.nan)
-        bad = []
-        for b in range(len(damped)):
-            try:
-                out[b] = np.linalg.inv(damped[b])
-            except np.linalg.LinAlgError:
-                bad.append(b)
-        return out, bad
-
-
 def _steps(ne: _Normal, lam: Array) -> tuple[Array, Array, Array, list[int]]:
     """:func:`.levenberg.solve_step` of each problem: the damped steps (B, G), (B, N, p), the
     predicted decreases (B,) and the problems whose system is singular."""
     B, _, p, _ = ne.UWg.shape
     G = ne.Vx.shape[1] - 1
-    damped, damp_p = damped_inverse(ne.UWg[..., :p], lam[:, None, None])
-    Uinv, bad = _inverses(damped)
+    Uinv, damp_p, singular = damped_inverse(ne.UWg[..., :p], lam[:, None, None])
+    bad = np.flatnonzero(singular).tolist()
     Yz, S, rhs, damp_g = schur(Uinv, ne.UWg, ne.Vx, lam[:, None])
     ext = np.zeros((B, G + 1))
     ext[:, -1] = 1.0

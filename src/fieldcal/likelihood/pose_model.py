@@ -33,6 +33,10 @@ from ..geometry.frames import GRAVITY, magnetic_reference
 from ..stats.pose_stats import PoseStats
 
 Array = NDArray[np.float64]
+Index = NDArray[np.intp]
+#: the types of two memo entries, built once (a subscripted type in a hot function costs µs)
+_ArrayPair = tuple[Array, Array]
+_IndexPair = tuple[Index, Index]
 
 SENSORS = ("accel", "mag")
 #: Entries (j, k) of a symmetric gain kept as parameters, row-major upper triangle.
@@ -163,15 +167,22 @@ def _build_problem(stats: PoseStats, frame: str) -> Problem:
     if frame not in sensors:
         frame = sensors[0]
     linv, means, start_chol, start_weight, start_mu, gs, bs = {}, {}, {}, {}, {}, {}, {}
-    # both sensors' factorisations in one call each (the same LAPACK routine per matrix)
+    # every factorisation in one call: the N pose covariances and the reference C_s of each
+    # sensor stacked (S, N + 1, 3, 3), Cholesky factors and their inverses
     st = [stats.sensor(s) for s in sensors]
-    covs = np.stack([x.mean_covariances() for x in st])
-    refs = np.stack([x.cov if x.cov is not None else np.eye(3) * x.pose_var for x in st])
+    n = stats.n_poses
+    mats = np.empty((len(st), n + 1, 3, 3))
+    for k, x in enumerate(st):
+        mats[k, :n] = x.mean_covariances()
+        mats[k, n] = x.cov if x.cov is not None else np.eye(3) * x.pose_var
     mus = np.stack([np.asarray(x.means, dtype=float) for x in st])
-    all_linv = np.linalg.inv(np.linalg.cholesky(covs))
-    all_chol = np.linalg.cholesky(refs)
-    all_weight = 3.0 / np.einsum("sij,snji->sn", np.linalg.inv(refs), covs)
-    all_mu = np.linalg.solve(all_chol, mus.transpose(0, 2, 1)).transpose(0, 2, 1)
+    chol = np.linalg.cholesky(mats)
+    inverse = np.linalg.inv(chol)
+    all_linv, all_chol, ref_linv = inverse[:, :n], chol[:, n], inverse[:, n]
+    # w_si = 3 / tr(C_s⁻¹ C_si), C_s⁻¹ = L⁻ᵀ L⁻¹ (symmetric: the trace is an entrywise sum)
+    ref_inv = ref_linv.transpose(0, 2, 1) @ ref_linv
+    all_weight = 3.0 / np.vecdot(ref_inv.reshape(-1, 1, 9), mats[:, :n].reshape(len(st), n, 9))
+    all_mu = mus @ ref_linv.transpose(0, 2, 1)  # L_s⁻¹ μ̂_si
     offset = 0
     for k, s in enumerate(sensors):
         linv[s], means[s], start_chol[s] = all_linv[k], mus[k], all_chol[k]
@@ -232,24 +243,85 @@ def bias_drift(problem: Problem, state: State, sensor: str) -> Array | None:
     return problem.temp_powers[:, :order] @ state.temp(problem, sensor)
 
 
-def residuals(problem: Problem, state: State) -> Array:
-    """Whitened residuals (N, 3·#sensors), accelerometer block first."""
-    out = []
-    for s in problem.sensors:
-        v = state.rotations @ field(problem, s, state.dip)
-        raw = v @ state.gains[s].T + state.biases[s] - problem.means[s]
-        drift = bias_drift(problem, state, s)
-        if drift is not None:
-            raw += drift
-        out.append(_whiten(problem.linv[s], raw))
-    return out[0] if len(out) == 1 else np.concatenate(out, axis=1)
+def stacked_data(problem: Problem) -> tuple[Array, Array]:
+    """Both sensors' whitening ``L⁻¹`` (S, N, 3, 3) and means (S, N, 3) stacked, once per
+    problem: the residuals and the Jacobian then take one product for all sensors."""
+    cached = problem.memo.get("stacked")
+    if cached is None:
+        linv = np.stack([problem.linv[s] for s in problem.sensors])
+        means = np.stack([problem.means[s] for s in problem.sensors])
+        cached = problem.memo["stacked"] = (linv, means)
+    return cast(_ArrayPair, cached)
 
 
-def rotation_basis(problem: Problem, state: State) -> Array | None:
-    """(N, 3, 2) tangent basis orthogonal to ``R_i f`` for one-sensor problems, else None."""
+def rotated_fields(problem: Problem, state: State) -> Array:
+    """(N, 3, S + 1 or S): ``R_i f_s`` of each sensor, then (joint problems) ``R_i dh/d(dip)``:
+    one product (:mod:`.stacked` the same) with the columns GRAVITY,
+    magnetic_reference(dip), magnetic_derivative(dip) of frames.py."""
+    if problem.joint:
+        c, s = np.cos(state.dip), np.sin(state.dip)
+        g = GRAVITY
+        F = np.array([[g[0], c, -s], [g[1], 0.0, 0.0], [g[2], s, c]])
+    else:
+        F = field(problem, problem.sensors[0], state.dip)[:, None]
+    out: Array = state.rotations @ F
+    return out
+
+
+def model_readings(problem: Problem, state: State, VV: Array | None = None) -> Array:
+    """(S, N, 3): ``K_s R_i f_s``, the model's field in each sensor's raw frame, both sensors
+    in one product (``VV`` from :func:`rotated_fields` when the caller has it)."""
+    S = len(problem.sensors)
+    if VV is None:
+        VV = rotated_fields(problem, state)
+    K = np.empty((S, 3, 3))  # faster than np.array of a list
+    for k, s in enumerate(problem.sensors):
+        K[k] = state.gains[s].T
+    out: Array = VV[:, :, :S].transpose(2, 0, 1) @ K
+    return out
+
+
+def raw_residuals(problem: Problem, state: State, readings: Array | None = None) -> Array:
+    """(S, N, 3): ``K_s R_i f_s + b_s (+ drift) − μ̂_s[i]`` in raw units (Eq. 6 before the
+    whitening); ``readings`` from :func:`model_readings` when the caller has them (turned into
+    the residuals in place)."""
+    _, means = stacked_data(problem)
+    raw = model_readings(problem, state) if readings is None else readings
+    b = np.empty((len(raw), 1, 3))
+    for k, s in enumerate(problem.sensors):
+        b[k, 0] = state.biases[s]
+    raw += b
+    raw -= means
+    if problem.temp_slice:
+        for k, s in enumerate(problem.sensors):
+            drift = bias_drift(problem, state, s)
+            if drift is not None:
+                raw[k] += drift
+    return raw
+
+
+def whiten(problem: Problem, raw: Array) -> Array:
+    """Whitened residuals (N, 3·S), accelerometer block first, of :func:`raw_residuals`:
+    ``L_si⁻¹ r_si`` (Eq. 6, 8)."""
+    linv, _ = stacked_data(problem)
+    w = (linv @ raw[..., None])[..., 0]
+    if len(w) == 1:
+        return cast(Array, w[0])
+    return w.transpose(1, 0, 2).reshape(problem.n, -1)
+
+
+def residuals(problem: Problem, state: State, VV: Array | None = None) -> Array:
+    """Whitened residuals (N, 3·#sensors), accelerometer block first (``VV`` from
+    :func:`rotated_fields` when the caller has it: the Jacobian at the state uses it too)."""
+    return whiten(problem, raw_residuals(problem, state, model_readings(problem, state, VV)))
+
+
+def rotation_basis(problem: Problem, state: State, VV: Array | None = None) -> Array | None:
+    """(N, 3, 2) tangent basis orthogonal to ``R_i f`` for one-sensor problems, else None
+    (``VV`` from :func:`rotated_fields` when the caller has it)."""
     if problem.joint:
         return None
-    v = state.rotations @ field(problem, problem.sensors[0], state.dip)
+    v = (rotated_fields(problem, state) if VV is None else VV)[:, :, 0]
     helper = np.eye(3)[np.argmin(np.abs(v), axis=1)]
     b1 = np.cross(v, helper)
     b1 /= np.linalg.norm(b1, axis=1, keepdims=True)
@@ -265,9 +337,10 @@ def jacobians(problem: Problem, state: State, basis: Array | None) -> tuple[Arra
     return J[..., :P], J[..., P:-1]
 
 
-def jacobian(problem: Problem, state: State, basis: Array | None) -> Array:
+def jacobian(problem: Problem, state: State, basis: Array | None, VV: Array | None = None) -> Array:
     """:func:`jacobians` in one array (N, m, P + G + 1): rotation columns, globals and a last
-    column left zero (the residuals' place in :func:`.levenberg.normal_equations`)."""
+    column left zero (the residuals' place in :func:`.levenberg.normal_equations`); ``VV``
+    from :func:`rotated_fields` when the caller has it."""
     P = 3 if basis is None else basis.shape[-1]
     key = ("jacobian", P)
     template = problem.memo.get(key)
@@ -277,19 +350,16 @@ def jacobian(problem: Problem, state: State, basis: Array | None) -> Array:
         template.setflags(write=False)
         problem.memo[key] = template
     J = cast(Array, template).copy()
-    Kw = {s: problem.linv[s] @ state.gains[s] for s in problem.sensors}
-    if problem.joint:
-        # R f for both sensors and R dh/d(dip) in one product (:mod:`.stacked` the same)
-        # columns GRAVITY, magnetic_reference(dip), magnetic_derivative(dip) (frames.py)
-        c, s = np.cos(state.dip), np.sin(state.dip)
-        g = GRAVITY
-        F = np.array([[g[0], c, -s], [g[1], 0.0, 0.0], [g[2], s, c]])
-        VV = state.rotations @ F
-        v = {s: VV[:, :, k] for k, s in enumerate(problem.sensors)}
-        fill_jacobian(problem, J, problem.linv, Kw, v, VV[:, :, 2], basis)
-    else:
-        v = {s: state.rotations @ field(problem, s, state.dip) for s in problem.sensors}
-        fill_jacobian(problem, J, problem.linv, Kw, v, None, basis)
+    linv, _ = stacked_data(problem)
+    S = len(problem.sensors)
+    K = np.empty((S, 1, 3, 3))
+    for k, s in enumerate(problem.sensors):
+        K[k, 0] = state.gains[s]
+    Kw = linv @ K
+    if VV is None:
+        VV = rotated_fields(problem, state)
+    v = VV[:, :, :S].transpose(2, 0, 1)
+    fill_jacobian(problem, J, linv, Kw, v, VV[:, :, 2] if problem.joint else None, basis)
     return J
 
 
@@ -315,38 +385,39 @@ def fill_constant(problem: Problem, J: Array, linv: dict[str, Array], powers: Ar
 def fill_jacobian(
     problem: Problem,
     J: Array,
-    linv: dict[str, Array],
-    Kw: dict[str, Array],
-    v: dict[str, Array],
+    linv: Array,
+    Kw: Array,
+    v: Array,
     dv: Array | None,
     basis: Array | None,
 ) -> None:
     """Write the analytic Jacobian's varying columns of M poses (of one problem or of many
     stacked, flat) into ``J`` (M, m, P + G + 1), whose constant columns :func:`fill_constant`
     wrote: ``[:P]`` the rotations' (3 or, with a ``basis`` (M, 3, 2), 2), the gains' and the
-    dip's. ``linv``, ``Kw = L⁻¹K`` (M, 3, 3) and ``v = R f`` (M, 3) per sensor;
-    ``dv = R dh/d(dip)`` (M, 3)."""
+    dip's. ``linv`` and ``Kw = L⁻¹K`` (S, M, 3, 3), ``v = R f`` (S, M, 3), sensors stacked
+    in the problem's order (one product for all of them); ``dv = R dh/d(dip)`` (M, 3)."""
+    M, S = len(J), len(problem.sensors)
     P = 3 if basis is None else basis.shape[-1]
-    Jp = J[..., :3] if basis is None else np.empty((len(J), J.shape[1], 3))
+    J4 = J.reshape(M, S, 3, J.shape[-1])  # a view: rows of sensor k at [:, k]
+    # d(K exp(ω^) R f)/dω = −K hat(R f) = K hat(v)ᵀ: hat built by one product
+    hat_t = (v @ HAT_T).reshape(S, M, 3, 3)
+    if basis is None:
+        np.matmul(Kw, hat_t, out=J4[..., :3].transpose(1, 0, 2, 3))
+    else:
+        J4[..., :P] = (Kw @ hat_t @ basis).transpose(1, 0, 2, 3)
+    # d(K v)/dK[j, k] = e_j v_k, for every sensor in one product
+    outer = (linv[..., None] * v[:, :, None, None, :]).reshape(S, M, 3, 9)
     g = P  # the globals' first column
     for k, s in enumerate(problem.sensors):
-        rows = slice(3 * k, 3 * k + 3)
-        # d(K exp(ω^) R f)/dω = −K hat(R f) = K hat(v)ᵀ: hat built by one product
-        np.matmul(Kw[s], (v[s] @ HAT_T).reshape(-1, 3, 3), out=Jp[:, rows, :])
-        # d(K v)/dK[j, k] = e_j v_k
-        L = linv[s]
         gs = problem.gain_slice[s]
-        gain = J[:, rows, g + gs.start : g + gs.stop]
+        gain = J4[:, k, :, g + gs.start : g + gs.stop]
         if problem.symmetric(s):
-            JK = (L[:, :, :, None] * v[s][:, None, None, :]).reshape(-1, 3, 9)
-            np.matmul(JK, SYM_MAP, out=gain)
+            np.matmul(outer[k], SYM_MAP, out=gain)
         else:
-            np.multiply(L[:, :, :, None], v[s][:, None, None, :], out=gain.reshape(-1, 3, 3, 3))
+            gain[...] = outer[k]
         if s == "mag" and dv is not None and problem.dip_index is not None:
             d = g + problem.dip_index
-            np.matmul(Kw[s], dv[:, :, None], out=J[:, rows, d : d + 1])
-    if basis is not None:
-        J[..., :P] = Jp @ basis
+            np.matmul(Kw[k], dv[:, :, None], out=J4[:, k, :, d : d + 1])
 
 
 def exp_map(omega: Array) -> Array:
@@ -371,17 +442,36 @@ def exp_map(omega: Array) -> Array:
 
 def apply_step(problem: Problem, state: State, dg: Array, dp: Array, basis: Array | None) -> State:
     """Additive update of the globals, multiplicative ``exp(ω^) R_i`` update of the rotations."""
+    gain_index, bias_index = _global_index(problem)
+    dK, db = dg[gain_index], dg[bias_index]  # (S, 3, 3), (S, 3): every sensor in one gather
     gains, biases, temps = {}, {}, {}
-    for s in problem.sensors:
-        d = dg[problem.gain_slice[s]]
-        dK = d[SYM_INDEX].reshape(3, 3) if problem.symmetric(s) else d.reshape(3, 3)
-        gains[s] = state.gains[s] + dK
-        biases[s] = state.biases[s] + dg[problem.bias_slice[s]]
+    for k, s in enumerate(problem.sensors):
+        gains[s] = state.gains[s] + dK[k]
+        biases[s] = state.biases[s] + db[k]
         if s in problem.temp_slice:
             temps[s] = state.temp(problem, s) + dg[problem.temp_slice[s]].reshape(-1, 3)
     dip = state.dip + (dg[problem.dip_index] if problem.dip_index is not None else 0.0)
     omega = dp if basis is None else np.einsum("nij,nj->ni", basis, dp)
     return State(gains, biases, float(dip), exp_map(omega) @ state.rotations, temps)
+
+
+def _global_index(problem: Problem) -> tuple[Index, Index]:
+    """Positions in the globals of each sensor's gain (S, 3, 3), row-major, a symmetric gain's
+    entries from its 6 parameters (``SYM_INDEX``), and of its bias (S, 3); once per problem."""
+    cached = problem.memo.get("global_index")
+    if cached is None:
+        gain = np.array(
+            [
+                (
+                    problem.gain_slice[s].start
+                    + (SYM_INDEX if problem.symmetric(s) else np.arange(9))
+                ).reshape(3, 3)
+                for s in problem.sensors
+            ]
+        )
+        bias = np.array([np.arange(3) + problem.bias_slice[s].start for s in problem.sensors])
+        cached = problem.memo["global_index"] = (gain, bias)
+    return cast(_IndexPair, cached)
 
 
 def sensor_costs(problem: Problem, e: Array) -> dict[str, float]:

@@ -288,12 +288,13 @@ def jacobian(sp: Stack, st: StackState, basis: Array | None) -> Array:
     p = sp.first
     B, n = st.rotations.shape[:2]
     bn = B * n
-    linv = {s: sp.linv[s].reshape(bn, 3, 3) for s in p.sensors}
-    Kw = {s: (sp.linv[s] @ st.gains[s][:, None]).reshape(bn, 3, 3) for s in p.sensors}
+    linv = np.stack([sp.linv[s].reshape(bn, 3, 3) for s in p.sensors])
+    Kw = np.stack([(sp.linv[s] @ st.gains[s][:, None]).reshape(bn, 3, 3) for s in p.sensors])
     flat_basis = None if basis is None else basis.reshape(bn, 3, 2)
     P = 3 if basis is None else 2
     J = np.zeros((bn, 3 * len(p.sensors), P + p.n_global + 1))
-    fill_constant(p, J, linv, None if sp.powers is None else sp.powers.reshape(bn, -1))
+    flat_linv = {s: linv[k] for k, s in enumerate(p.sensors)}
+    fill_constant(p, J, flat_linv, None if sp.powers is None else sp.powers.reshape(bn, -1))
     if p.joint:
         dip = st.dip
         F = np.stack(
@@ -305,10 +306,10 @@ def jacobian(sp: Stack, st: StackState, basis: Array | None) -> Array:
             axis=2,
         )
         VV = (st.rotations @ F[:, None]).reshape(bn, 3, 3)
-        v = {s: VV[:, :, k] for k, s in enumerate(p.sensors)}
-        fill_jacobian(p, J, linv, Kw, v, VV[:, :, 2], flat_basis)
+        fill_jacobian(p, J, linv, Kw, VV[:, :, :2].transpose(2, 0, 1), VV[:, :, 2], flat_basis)
     else:
-        v = {s: _rotate(st.rotations, _fields(sp, s, st.dip)).reshape(bn, 3) for s in p.sensors}
+        f = _fields(sp, p.sensors[0], st.dip)
+        v = _rotate(st.rotations, f).reshape(1, bn, 3)
         fill_jacobian(p, J, linv, Kw, v, None, flat_basis)
     return J.reshape(B, n, *J.shape[1:])
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,7 +16,14 @@ from numpy.typing import NDArray
 from ..calibration import Calibration
 from ..likelihood.cramer_rao import Uncertainty, uncertainty
 from ..likelihood.levenberg import normal_equations
-from ..likelihood.pose_model import Problem, build_problem, field, residuals
+from ..likelihood.pose_model import (
+    Problem,
+    build_problem,
+    model_readings,
+    raw_residuals,
+    rotated_fields,
+    whiten,
+)
 from ..methods.mle import state_from_calibration
 from ..stats.pose_stats import PoseStats
 
@@ -86,17 +92,13 @@ def evaluate(cal: Calibration, stats: PoseStats, body_frame: str) -> Evaluation:
     """
     problem = build_problem(stats, body_frame)
     state = state_from_calibration(problem, cal)
-    e = residuals(problem, state)
-    ne = normal_equations(problem, state, e)
-    raw, directions = {}, {}
-    for s in problem.sensors:
-        v = (state.rotations @ field(problem, s, state.dip)) @ state.gains[s].T
-        directions[s] = v / np.linalg.norm(v, axis=1, keepdims=True)
-        k = problem.sensors.index(s)
-        # back to raw units: L_i e_i
-        cached = problem.memo.get(("chol", s))
-        if cached is None:
-            cached = problem.memo[("chol", s)] = np.linalg.inv(problem.linv[s])
-        chol = cast(Array, cached)
-        raw[s] = np.einsum("nij,nj->ni", chol, e[:, 3 * k : 3 * k + 3])
+    VV = rotated_fields(problem, state)  # R_i f_s: the readings' and the Jacobian's
+    readings = model_readings(problem, state, VV)  # K_s R_i f_s, both sensors
+    norms = np.sqrt(np.vecdot(readings, readings))[..., None]
+    unit = readings / norms
+    raw_all = raw_residuals(problem, state, readings)  # the readings become the residuals
+    e = whiten(problem, raw_all)
+    ne = normal_equations(problem, state, e, VV)
+    raw = {s: raw_all[k] for k, s in enumerate(problem.sensors)}
+    directions = {s: unit[k] for k, s in enumerate(problem.sensors)}
     return Evaluation(problem, e, raw, uncertainty(problem, ne), directions)

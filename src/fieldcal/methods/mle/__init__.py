@@ -13,9 +13,11 @@ The certificate, the pose-level noise and the error bars are the shared trust pa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
@@ -34,6 +36,8 @@ from ...thermal import TemperatureModel
 from .start import closed_form_start, few_pose_starts, flip_other, min_rotations
 
 __all__ = ["fit", "state_from_calibration"]
+
+Array = NDArray[np.float64]
 
 #: Closed-form starts (accelerometer's, magnetometer's ellipsoid family), in order: the first two
 #: always run, the others when the poses are few or the certificate is doubtful.
@@ -75,12 +79,19 @@ def _canonical(problem: Problem, state: State) -> State:
         state = state.copy()
         state.dip = float(np.pi - state.dip)
         state.rotations = state.rotations @ HALF_TURN_DOWN
-    state.dip = float(np.arctan2(np.sin(state.dip), np.cos(state.dip)))
+    state.dip = math.atan2(math.sin(state.dip), math.cos(state.dip))
     other = "mag" if problem.frame == "accel" else "accel"
     # K and −K fit equally (see flip_other): the stated handedness decides, as in
     # Calibration.with_mag_handedness, which fieldcal.calibrate applies afterwards
-    det = np.prod(np.linalg.det(np.stack([state.gains[other], state.gains[problem.frame]])))
+    det = _det3(state.gains[other]) * _det3(state.gains[problem.frame])
     return flip_other(problem, state, other) if det < 0 else state
+
+
+def _det3(K: Array) -> float:
+    """The determinant of a 3x3 gain (its sign decides the handedness): the cofactor sum in
+    Python floats, cheaper than ``np.linalg.det``'s wrapper for one small matrix."""
+    (a, b, c), (d, e, f), (g, h, i) = K.tolist()
+    return float(a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g))
 
 
 def _solve_starts(
