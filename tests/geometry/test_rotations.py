@@ -1,5 +1,7 @@
 """SO(3) tools against scipy's Rotation and against their defining properties."""
 
+import warnings
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -14,6 +16,7 @@ from fieldcal.geometry.rotations import (
     random_rotations,
     rotation_angle_deg,
     wahba,
+    wahba_pair,
 )
 
 finite = st.floats(-3.0, 3.0, allow_nan=False)
@@ -74,3 +77,32 @@ def test_wahba_recovers_the_rotation_from_two_directions(seed):
     world = rng.standard_normal((4, 2, 3))
     body = np.einsum("nij,nkj->nki", R, world)
     np.testing.assert_allclose(wahba(body, world), R, atol=1e-9)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 1.0))
+def test_wahba_of_two_directions_in_closed_form_is_the_svds(seed, noise):
+    """The bisector frames' rotation is Wahba's optimum (the SVD's) to rounding, for pairs at
+    any angle and observations far from any rotation's image."""
+    rng = np.random.default_rng(seed)
+    R = random_rotations(40, rng)
+    r1, r2 = rng.normal(size=(2, 40, 3))
+    b1 = np.einsum("nij,nj->ni", R, r1) + noise * rng.normal(size=(40, 3))
+    b2 = np.einsum("nij,nj->ni", R, r2) + noise * rng.normal(size=(40, 3))
+    b1, b2, r1, r2 = (x / np.linalg.norm(x, axis=1, keepdims=True) for x in (b1, b2, r1, r2))
+    svd = wahba(np.stack([b1, b2], axis=1), np.stack([r1, r2], axis=1))
+    np.testing.assert_allclose(wahba_pair(b1, b2, r1, r2), svd, atol=1e-9)
+
+
+def test_wahba_of_parallel_directions_falls_back_to_the_svd():
+    rng = np.random.default_rng(4)
+    b1 = rng.normal(size=(5, 3))
+    b1 /= np.linalg.norm(b1, axis=1, keepdims=True)
+    r1 = np.array([0.0, 0.0, -1.0])
+    r2 = np.array([0.6, 0.0, 0.8])
+    for b2 in (b1, -b1):  # no plane: the SVD's answer (no NaN, no warning)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            got = wahba_pair(b1, b2, r1, r2)
+        want = wahba(np.stack([b1, b2], axis=1), np.broadcast_to(np.stack([r1, r2]), (5, 2, 3)))
+        np.testing.assert_array_equal(got, want)

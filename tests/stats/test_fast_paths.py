@@ -537,3 +537,25 @@ def test_drift_of_the_rests_from_sums_equals_the_two_pass_one():
     means = np.array([y[a:b].mean(axis=0) for a, b in spans])
     expected = float(np.median(drift)) / float(np.median(np.linalg.norm(means, axis=1)))
     assert log_poses._still_drift(log.accel, "accel", segments) == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.parametrize("quantum", [0.0, 0.25])
+def test_window_search_gives_every_rank_of_the_absolute_deviations(quantum):
+    """_window_order's search (on positions in the flat array, overshooting where no window
+    crosses) gives, for any rank, the sorted absolute deviations' value, bit for bit."""
+    rng = np.random.default_rng(13)
+    counts = np.array([1, 2, 3, 4, 7, 10, 31, 64, 100, 513])
+    x = rng.normal(size=(3, counts.sum())) * 3.0
+    if quantum:
+        x = np.round(x / quantum) * quantum  # ties
+    starts = np.cumsum(counts) - counts
+    poses = list(zip(starts.tolist(), counts.tolist(), strict=True))
+    y = np.concatenate([np.sort(x[:, s : s + n], axis=1) for s, n in poses], axis=1)
+    m = np.stack([np.median(y[:, s : s + n], axis=1) for s, n in poses], axis=1)
+    for fraction in (0.0, 0.3, 0.5, 0.8, 1.0):  # ranks from the nearest to the farthest
+        ranks = np.round(fraction * (counts - 1)).astype(np.int64)
+        got = trimming._window_order(y, counts, np.column_stack([ranks, counts // 2]), m)
+        for i, (s, n) in enumerate(poses):
+            plain = np.sort(np.abs(y[:, s : s + n] - m[:, i : i + 1]), axis=1)
+            np.testing.assert_array_equal(got[0, :, i], plain[:, ranks[i]])
+            np.testing.assert_array_equal(got[1, :, i], plain[:, n // 2])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.stats.pose_stats import stats_from_means
+from fieldcal.stats.pose_stats import check_spread, stats_from_means
 
 
 def test_summarize_matches_a_hand_computation():
@@ -87,3 +87,33 @@ def test_covariance_keeps_its_precision_under_large_offsets():
     # shift, XᵀX − ΣΔμμᵀ would cancel ~1e13 against 1e13 and keep no digit of the 4 counts²
     np.testing.assert_allclose(stats.accel.cov, scatter / (20 * 300 - 20), rtol=0, atol=1e-6)
     np.testing.assert_allclose(stats.accel.means, [p.mean(axis=0) for p in poses], rtol=1e-14)
+
+
+def test_single_reading_poses_are_not_trimmed_and_summarised_as_given():
+    """No pose of one reading can be trimmed: the trimmed summary is the plain one (no order
+    statistics are taken), with zero cuts counted."""
+    rng = np.random.default_rng(11)
+    a = [rng.normal(size=(1, 3)) * 9.8 for _ in range(24)]
+    m = [rng.normal(size=(1, 3)) * 0.4 for _ in range(24)]
+    trimmed, plain = fieldcal.summarize(a, m, trim=True), fieldcal.summarize(a, m)
+    for name in ("accel", "mag"):
+        got, want = trimmed.sensor(name), plain.sensor(name)
+        np.testing.assert_array_equal(got.means, want.means)
+        np.testing.assert_array_equal(got.means, np.concatenate(a if name == "accel" else m))
+        assert got.cov is None and got.dof == 0
+        np.testing.assert_array_equal(got.trimmed, np.zeros(24, dtype=np.int64))
+        assert want.trimmed is None
+
+
+@pytest.mark.parametrize("sensor", ["accel", "mag"])
+def test_spread_check_names_the_sensor_whose_poses_lie_on_a_line(sensor):
+    rng = np.random.default_rng(12)
+    spread = rng.normal(size=(12, 3)) + 5.0
+    line = np.outer(np.linspace(-1, 1, 12), [0.3, 0.4, 0.5]) + 2.0
+    means = {"accel": spread, "mag": spread, sensor: line}
+    stats = stats_from_means(means["accel"], means["mag"])
+    with pytest.raises(
+        ValueError, match=f"the {sensor} readings barely change .* or lie on a line"
+    ):
+        check_spread(stats)
+    check_spread(stats_from_means(spread, spread))  # spread poses pass

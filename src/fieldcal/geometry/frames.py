@@ -63,8 +63,13 @@ HALF_TURN_NORTH: Array = np.diag([1.0, -1.0, -1.0])
 HALF_TURN_NORTH.setflags(write=False)
 
 
-def magnetic_reference(dip_rad: float) -> Array:
-    """The unit magnetic field in the NED world frame for a dip (radians, positive down)."""
+def magnetic_reference(dip_rad: float | Array) -> Array:
+    """The unit magnetic field in the NED world frame for a dip (radians, positive down);
+    (..., 3) for an array of dips."""
+    if isinstance(dip_rad, np.ndarray):
+        out = np.zeros((*dip_rad.shape, 3))
+        out[..., 0], out[..., 2] = np.cos(dip_rad), np.sin(dip_rad)
+        return out
     return np.array([np.cos(dip_rad), 0.0, np.sin(dip_rad)])
 
 

@@ -33,6 +33,7 @@ __all__ = [
     "Quadric",
     "algebraic_fit",
     "ellipsoid_radii",
+    "family_design",
     "family_fit",
     "family_fits",
     "li_griffiths_fit",
@@ -328,7 +329,7 @@ def spd_sqrt(M: Array) -> tuple[Array, Array]:
     return (V * root) @ Vt, (V / root) @ Vt
 
 
-def _family_design(y: Array, weights: Array) -> tuple[Array, Array, Array, Array]:
+def family_design(y: Array, weights: Array) -> tuple[Array, Array, Array, Array]:
     """The normalised points, their centre and scale, and the rows' scaling by ``√w``, for
     point sets (..., n, 3) with weights (..., n)."""
     wsum = weights.sum(axis=-1)
@@ -355,12 +356,18 @@ def family_fit(
 
 
 def family_fits(
-    y: Array, weights: Array, family: str = "full"
+    y: Array,
+    weights: Array,
+    family: str = "full",
+    *,
+    design: tuple[Array, Array, Array, Array] | None = None,
 ) -> tuple[Array, Array, NDArray[np.bool_]]:
     """:func:`family_fit` for several point sets at once, (S, n, 3) with weights (S, n): the
     gains (S, 3, 3), centres (S, 3) and which fits are ellipsoids (entries of the others are
-    meaningless). One call of each LAPACK routine for all the sets."""
-    z, c0, s0, sw = _family_design(y, weights)
+    meaningless). One call of each LAPACK routine for all the sets. ``design``: these sets'
+    :func:`family_design`, when already computed (every family of the same points shares it).
+    """
+    z, c0, s0, sw = family_design(y, weights) if design is None else design
     S, n = z.shape[:2]
     q = {"full": 6, "axes": 3}.get(family, 1)  # quadratic columns, then 2z and 1
     pull = len(_SPHERE_PULL) if family == "full" else 0
@@ -415,7 +422,7 @@ def pencil_fits(
     Returns per member the symmetric gain ``K`` (n_grid, 3, 3), the centre (n_grid, 3) and a
     mask of the members that are ellipsoids.
     """
-    z, c0, scale, sw = _family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
+    z, c0, scale, sw = family_design(np.asarray(y, dtype=float), np.asarray(weights, dtype=float))
     s0 = float(scale)
     x1, x2, x3 = z.T
     D = np.column_stack(

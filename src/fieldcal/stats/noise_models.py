@@ -100,5 +100,6 @@ def pose_noise_value(value: object, name: str) -> float | None:
 
 def wishart_std(cov: Array, dof: int) -> Array:
     """Standard error of Eq. 7's entries: ``Var Σ̂_ij = (Σ_ij² + Σ_ii Σ_jj)/ν``."""
-    d = np.diag(cov)
-    return np.asarray(np.sqrt((cov**2 + np.outer(d, d)) / max(dof, 1)))
+    d = cov.diagonal()
+    # Σ_ii Σ_jj by broadcasting: np.outer's numbers without its wrapper (called per fit)
+    return np.asarray(np.sqrt((cov**2 + d[:, None] * d[None, :]) / max(dof, 1)))

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._frozen import ArrayDataclass
 from ..limits import LARGEST, power_of_two
 from .pose_temperature import PoseTemperature
-from .trimming import unsteady
+from .trimming import MIN_SAMPLES, unsteady
 
 __all__ = [
     "LARGEST",
@@ -474,16 +474,26 @@ def _sensor_summary(
     """One sensor's sums (after cutting unsteady samples when ``trim``), checked: NaN, inf and
     readings beyond :data:`LARGEST` are refused in one line, naming where."""
     counts = np.array([len(p) for p in poses], dtype=np.int64)
-    if not trim:
-        mo = _moments(poses, counts, extremes, scratch)
-        # a NaN or inf reaches the sums; |x| <= |x0| + sqrt(Σ d²) bounds the range, and only
-        # when the bound is loose (or something is wrong) are the samples scanned again
-        if not (mo.finite and np.isfinite(mo.x0).all()) or mo.bound() > LARGEST:
-            _check_values(poses, name)
-            if not mo.finite:  # valid readings far larger than their poses' first ones
-                unit = power_of_two(max(float(np.abs(p).max()) for p in poses))
-                mo = _moments(poses, counts, extremes, scratch, unit)
-        return mo, counts, None
+    if trim and (counts >= MIN_SAMPLES).any():
+        return _trimmed_summary(poses, name, counts, scratch)
+    # no pose with samples enough to trim (e.g. one averaged shot per pose) cuts nothing:
+    # no order statistics are needed, the plain sums are the summary
+    mo = _moments(poses, counts, extremes or trim, scratch)
+    # a NaN or inf reaches the sums; |x| <= |x0| + sqrt(Σ d²) bounds the range, and only
+    # when the bound is loose (or something is wrong) are the samples scanned again
+    if not (mo.finite and np.isfinite(mo.x0).all()) or mo.bound() > LARGEST:
+        _check_values(poses, name)
+        if not mo.finite:  # valid readings far larger than their poses' first ones
+            unit = power_of_two(max(float(np.abs(p).max()) for p in poses))
+            mo = _moments(poses, counts, extremes or trim, scratch, unit)
+    return mo, counts, np.zeros_like(counts) if trim else None
+
+
+def _trimmed_summary(
+    poses: list[Array], name: str, counts: NDArray[np.int64], scratch: _Scratch
+) -> tuple[_Moments, NDArray[np.int64], NDArray[np.int64]]:
+    """One sensor's sums after cutting unsteady samples, checked as :func:`_sensor_summary`
+    checks."""
     # trimming selects order statistics of every pose: the samples are copied side by side
     # once, axes as rows, into work space that every later step reuses
     k = int(counts.sum())
@@ -649,14 +659,16 @@ def check_spread(stats: PoseStats) -> None:
     out of the horizontal plane are what is missing. One-line ``ValueError`` naming it.
     """
     sensors = stats.sensors
-    means = [stats.sensor(name).means for name in sensors]
-    centred = [m - m.mean(axis=0) for m in means]
+    means = np.array([stats.sensor(name).means for name in sensors])  # (S, N, 3)
+    centred = means - means.mean(axis=1, keepdims=True)
     # the singular values of the centred means are the square roots of the eigenvalues of
     # their scatter matrix: one 3x3 eigen-decomposition per sensor, both sensors in one call
-    lam, vectors = np.linalg.eigh(np.stack([c.T @ c for c in centred]))
-    for name, m, w, V in zip(sensors, means, lam, vectors, strict=True):
-        sv = np.sqrt(np.maximum(w[::-1], 0.0))
-        if sv[0] <= 1e-12 * float(np.abs(m).max()) or sv[1] < FLAT * sv[0]:
+    # (as every step here: the check runs before each fit)
+    lam, vectors = np.linalg.eigh(np.swapaxes(centred, 1, 2) @ centred)
+    singular = np.sqrt(np.maximum(lam[:, ::-1], 0.0)).tolist()  # largest first
+    sizes = np.abs(means).max(axis=(1, 2)).tolist()
+    for name, sv, size, V in zip(sensors, singular, sizes, vectors, strict=True):
+        if sv[0] <= 1e-12 * size or sv[1] < FLAT * sv[0]:
             raise ValueError(
                 f"degenerate poses: the {name} readings barely change from pose to pose or lie "
                 "on a line; turn the device so that each of its axes points up and down in turn"

@@ -113,7 +113,7 @@ def unsteady(
     n = len(counts)
     trimmed = np.zeros(n, dtype=np.int64)
     deviations, row = work[:3], work[3]
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    starts = np.cumsum(counts) - counts
     eligible = counts >= MIN_SAMPLES
     # beside the medians, two order statistics per pose that bound its MAD from below
     lo = (counts - 1) // 2
@@ -230,14 +230,19 @@ def _window_order(y: Array, counts: NDArray[np.int64], ranks: NDArray[np.int64],
     q = np.broadcast_to(ranks[None, :, :], (3, k, ranks.shape[1]))
     mid_value = m[:, :, None]
     top = np.broadcast_to((counts[:, None] - ranks)[None], q.shape)  # windows p in [0, top)
-    lo = np.zeros(q.shape, dtype=np.int64)
-    hi = top.copy()
+    # the search runs on positions in ``flat`` (base + p): fewer numpy calls per step, each a
+    # few µs on these small arrays. The first crossed window is in [lo, hi]; where none is
+    # (hi = top) lo may pass hi, hence min(lo, hi) after the loop.
+    lo = base + np.zeros_like(q)
+    hi = base + top
+    last = hi - 1
     for _ in range(int(top.max()).bit_length()):
         p = (lo + hi) >> 1
-        at = base + np.minimum(p, top - 1)
+        at = np.minimum(p, last)
         crossed = (flat[at + q] - mid_value) >= (mid_value - flat[at])
         hi = np.where(crossed, p, hi)
-        lo = np.where(crossed, lo, np.minimum(p + 1, hi))
+        lo = np.where(crossed, lo, p + 1)
+    lo = np.minimum(lo, hi) - base
     # the best window is the first crossed one (its far end) or the one before (its near end)
     after = np.where(lo < top, flat[base + np.minimum(lo, top - 1) + q] - mid_value, np.inf)
     before = np.where(lo > 0, mid_value - flat[base + np.maximum(lo - 1, 0)], np.inf)
@@ -332,6 +337,9 @@ def _small(
 ) -> Iterator[tuple[int, int, int, int]]:
     """Runs of consecutive poses of fewer than :data:`SELECT` samples: first pose, last + 1,
     first sample, last + 1."""
+    if counts.max() < SELECT:  # the usual case: one run of every pose
+        yield 0, len(counts), 0, int(starts[-1] + counts[-1])
+        return
     small = (counts < SELECT).view(np.int8)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], small, [0]])))
     for p0, p1 in zip(edges[0::2].tolist(), edges[1::2].tolist(), strict=True):

@@ -10,64 +10,91 @@
    orthogonal Q) keep a constant angle: ``u_iᵀ Q v'_i = −sin(dip)``. This is linear in
    (Q, sin dip): solved by SVD, the best member of the two smallest singular vectors' pencil
    is taken and projected onto O(3) (Q may be a reflection: mirrored magnetometer).
-3. Each pose's rotation from its two vectors (Wahba's problem, batched SVD).
+3. Each pose's rotation from its two vectors (Wahba's problem, in closed form for two
+   directions: :func:`fieldcal.geometry.rotations.wahba_pair`).
+
+The starts a fit asks for share their work: the whitened means' design is built once, each
+(sensor, family) ellipsoid is fitted once, and steps 2-3 run for a group of starts at once,
+vectorised over the starts (:func:`closed_form_starts`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ...geometry.alignment import constant_angle, constant_angle_rows
+from ...geometry.alignment import constant_angle_rows, constant_angles
 from ...geometry.frames import GRAVITY, magnetic_reference, orthogonal_polar_factor, twin_flip
-from ...geometry.quadrics import family_fit, family_fits, pencil_fits, spd_sqrt
-from ...geometry.rotations import exp_so3, wahba
+from ...geometry.quadrics import family_design, family_fits, pencil_fits, spd_sqrt
+from ...geometry.rotations import exp_so3, wahba_pair
 from ...likelihood.pose_model import Problem, State, field
 
 Array = NDArray[np.float64]
 
 
-def sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
-    """Symmetric gain and bias of one sensor, in raw units, from its ellipsoid (each sensor
-    and family fitted once per problem: the mixed starts share them, ``problem.memo``)."""
-    key = ("sensor_start", sensor, model)
+#: The ellipsoid families of the starts (``model`` of :func:`closed_form_start`).
+FAMILIES = ("full", "axes", "sphere")
+#: The starts a cold fit of :mod:`fieldcal.methods.mle` always tries first, one after the
+#: other (its ``STARTS[:2]``); when the poses are few or the certificate is doubtful it asks
+#: for every other pair of families, one after the other. Asked for one start of either
+#: group, :func:`closed_form_start` computes the whole group in one batch
+#: (:func:`closed_form_starts`) and keeps the others for their calls.
+PAIRED: tuple[tuple[str, str], ...] = (("full", "full"), ("axes", "axes"))
+
+Fit = tuple[Array, Array]
+
+
+def _design(problem: Problem) -> tuple[Array, Array, tuple[Array, Array, Array, Array]]:
+    """Every sensor's whitened pose means and weights, stacked (S, N, 3) and (S, N), and their
+    normalised design (:func:`fieldcal.geometry.quadrics.family_design`): the same for every
+    ellipsoid family, computed once per problem."""
+    key = "start.design"
     if key not in problem.memo:
-        problem.memo[key] = _sensor_start(problem, sensor, model)
-    fit = cast(tuple[Array, Array] | None, problem.memo[key])
-    return None if fit is None else (fit[0].copy(), fit[1].copy())  # a start is changed
+        y = np.array([problem.start_mu[s] for s in problem.sensors])
+        w = np.array([problem.start_weight[s] for s in problem.sensors])
+        problem.memo[key] = (y, w, family_design(y, w))
+    return cast(tuple[Array, Array, tuple[Array, Array, Array, Array]], problem.memo[key])
 
 
-def _sensor_start(problem: Problem, sensor: str, model: str) -> tuple[Array, Array] | None:
-    w = problem.start_weight[sensor]
-    fit = family_fit(problem.start_mu[sensor], w, model)
-    if fit is None:
-        return None
-    Ky, cy = fit
-    L = problem.start_chol[sensor]
-    K = L @ Ky
-    # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
-    P, _ = spd_sqrt(K @ K.T)
-    return P, L @ cy
+def _sensor_fits(
+    problem: Problem, wanted: set[tuple[str, str]]
+) -> dict[tuple[str, str], Fit | None]:
+    """Step 1: the ellipsoid start (symmetric gain and bias, in raw units) of each (sensor,
+    family) in ``wanted``, or ``None`` where the fit is no ellipsoid. Each is fitted once per
+    problem (``problem.memo``: the mixed starts share them); the missing ones in one batched
+    fit per family, for the sensors that need it."""
+    memo = problem.memo
+    missing = sorted(pair for pair in wanted if ("sensor_start", *pair) not in memo)
+    if missing:
+        y, w, (z, c0, s0, sw) = _design(problem)
+        order = {s: k for k, s in enumerate(problem.sensors)}
+        gains, centres, fitted, done = [], [], [], []
+        for family in dict.fromkeys(f for _, f in missing):
+            pairs = [(s, f) for s, f in missing if f == family]
+            i = [order[s] for s, _ in pairs]
+            K, c, ok = family_fits(y[i], w[i], family, design=(z[i], c0[i], s0[i], sw[i]))
+            gains.append(K)
+            centres.append(c)
+            fitted.extend(ok.tolist())
+            done.extend(pairs)
+        L = np.array([problem.start_chol[s] for s, _ in done])
+        K = L @ np.concatenate(gains)
+        # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of
+        # start; every new fit's in one call
+        P, _ = spd_sqrt(K @ K.transpose(0, 2, 1))
+        b = (L @ np.concatenate(centres)[:, :, None])[:, :, 0]
+        for k, (pair, ok) in enumerate(zip(done, fitted, strict=True)):
+            memo[("sensor_start", *pair)] = (P[k], b[k]) if ok else None
+    return {pair: cast(Fit | None, memo[("sensor_start", *pair)]) for pair in wanted}
 
 
 def _directions(problem: Problem, sensor: str, K: Array, b: Array) -> Array:
     means = problem.means[sensor]
     u = np.linalg.solve(K, (means - b).T).T
     return u / np.linalg.norm(u, axis=1, keepdims=True)
-
-
-def _both_directions(
-    problem: Problem, gains: tuple[Array, Array], biases: tuple[Array, Array]
-) -> tuple[Array, Array]:
-    """:func:`_directions` of the accelerometer and the magnetometer in one solve (the same
-    numbers: one LAPACK solve per matrix either way)."""
-    means = np.stack([problem.means["accel"], problem.means["mag"]])
-    u = np.linalg.solve(np.stack(gains), (means - np.stack(biases)[:, None, :]).transpose(0, 2, 1))
-    u = u.transpose(0, 2, 1)
-    u = u / np.linalg.norm(u, axis=2, keepdims=True)
-    return u[0], u[1]
 
 
 def min_rotations(f: Array, u: Array) -> Array:
@@ -83,76 +110,116 @@ def min_rotations(f: Array, u: Array) -> Array:
     return exp_so3(axis * angle[:, None])
 
 
-def sensor_starts(problem: Problem, model: str) -> dict[str, tuple[Array, Array]] | None:
-    """:func:`sensor_start` of every sensor with the same ellipsoid family, all at once."""
-    sensors = problem.sensors
-    K, c, ok = family_fits(
-        np.stack([problem.start_mu[s] for s in sensors]),
-        np.stack([problem.start_weight[s] for s in sensors]),
-        model,
-    )
-    if not ok.all():
-        return None
-    L = np.stack([problem.start_chol[s] for s in sensors])
-    K = L @ K
-    # symmetric factor of the polar decomposition K = P U (Sec. 4.3): the body frame of start
-    P, _ = spd_sqrt(K @ K.transpose(0, 2, 1))
-    b = (L @ c[:, :, None])[:, :, 0]
-    return {s: (P[k], b[k]) for k, s in enumerate(sensors)}
+def _models(problem: Problem, model: str | tuple[str, ...]) -> tuple[str, ...]:
+    """The family of each sensor of the problem."""
+    models = (model, model) if isinstance(model, str) else tuple(model)
+    return models[: len(problem.sensors)]
 
 
 def closed_form_start(problem: Problem, model: str | tuple[str, str] = "full") -> State | None:
-    """A full starting state, or None when an ellipsoid fit fails for this model."""
-    models = (model, model) if isinstance(model, str) else model
-    if len(set(models[: len(problem.sensors)])) == 1:
-        fits = sensor_starts(problem, models[0])
-        return None if fits is None else start_from_fits(problem, fits)
-    fits = {}
-    for s, m in zip(problem.sensors, models, strict=False):
-        fit = sensor_start(problem, s, m)
-        if fit is None:
-            return None
-        fits[s] = fit
-    return start_from_fits(problem, fits)
+    """A full starting state, or None when an ellipsoid fit fails for this model.
+
+    The starts of :data:`PAIRED`, and all the others, are computed in two batches (asked for
+    one, the rest of its group is kept in ``problem.memo`` for its call: a fit asks for all of
+    them)."""
+    models = _models(problem, model)
+    key = ("closed_form_start", models)
+    if key not in problem.memo:
+        paired = [_models(problem, pair) for pair in PAIRED]
+        every = dict.fromkeys(_models(problem, (a, m)) for a in FAMILIES for m in FAMILIES)
+        group = paired if models in paired else [m for m in every if m not in paired]
+        batch = [models] + [
+            m for m in group if m != models and ("closed_form_start", m) not in problem.memo
+        ]
+        for m, state in zip(batch, closed_form_starts(problem, batch), strict=True):
+            problem.memo[("closed_form_start", m)] = state
+    state = cast(State | None, problem.memo[key])
+    return None if state is None else state.copy()  # a start is changed by the solver
 
 
-def start_from_fits(problem: Problem, fits: dict[str, tuple[Array, Array]]) -> State:
-    """Steps 2-3: orientation and dip from the constant angle, rotations by Wahba."""
+def closed_form_starts(
+    problem: Problem, models: Sequence[str | tuple[str, ...]]
+) -> list[State | None]:
+    """:func:`closed_form_start` of several models at once: each (sensor, family) ellipsoid
+    fitted once (one batched fit per family), then steps 2-3 of every start in one vectorised
+    pass (:func:`starts_from_fits`)."""
+    per_start = [_models(problem, m) for m in models]
+    fits = _sensor_fits(
+        problem, {(s, f) for ms in per_start for s, f in zip(problem.sensors, ms, strict=True)}
+    )
+    chosen: list[dict[str, Fit] | None] = []
+    for ms in per_start:
+        found = {s: fits[s, f] for s, f in zip(problem.sensors, ms, strict=True)}
+        ok = all(f is not None for f in found.values())
+        chosen.append(cast(dict[str, Fit], found) if ok else None)
+    states = starts_from_fits(problem, [f for f in chosen if f is not None])
+    out: list[State | None] = []
+    for f in chosen:
+        out.append(None if f is None else states.pop(0))
+    return out
+
+
+def starts_from_fits(problem: Problem, fits: list[dict[str, Fit]]) -> list[State]:
+    """Steps 2-3 for several starts of one problem (each a sensor → (gain, bias) of step 1):
+    orientation and dip from the constant angle, rotations by Wahba. Vectorised over the
+    starts: one call of each LAPACK routine for all of them."""
+    if not fits:
+        return []
     if not problem.joint:
         s = problem.sensors[0]
-        K, b = fits[s]
-        u = _directions(problem, s, K, b)
-        R = min_rotations(field(problem, s, 0.0), u)
-        return State({s: K}, {s: b}, 0.0, R)
-    (Ka, ba), (Km, bm) = fits["accel"], fits["mag"]
-    u, vp = _both_directions(problem, (Ka, Km), (ba, bm))
+        states = []
+        for fit in fits:
+            K, b = fit[s]
+            u = _directions(problem, s, K, b)
+            R = min_rotations(field(problem, s, 0.0), u)
+            states.append(State({s: K.copy()}, {s: b.copy()}, 0.0, R))  # not the memo's
+        return states
+    K = np.array([[f["accel"][0], f["mag"][0]] for f in fits])  # (B, 2, 3, 3)
+    b = np.array([[f["accel"][1], f["mag"][1]] for f in fits])  # (B, 2, 3)
+    means = np.array([problem.means["accel"], problem.means["mag"]])  # (2, N, 3)
+    # each sensor's unit directions (B, 2, N, 3): one LAPACK solve per matrix
+    raw = np.swapaxes(
+        np.linalg.solve(K, np.swapaxes(means[None] - b[:, :, None, :], -1, -2)), -1, -2
+    )
+    dirs = raw / np.linalg.norm(raw, axis=3, keepdims=True)
     w = np.minimum(problem.start_weight["accel"], problem.start_weight["mag"])
-    Q, c = constant_angle(u, vp, w)
-    dip = float(np.arcsin(-c))  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
-    v = vp @ Q.T
-    h = magnetic_reference(dip)
-    world = np.stack([GRAVITY, h])
-    body = np.stack([u, v], axis=1)
-    R = wahba(body, np.broadcast_to(world, body.shape))
-    gains = {"accel": Ka, "mag": Km @ Q.T}
-    state = State(gains, {"accel": ba, "mag": bm}, dip, R)
-    return to_frame(problem, state)
+    Q, c = constant_angles(dirs[:, 0], dirs[:, 1], w)
+    dip = np.arcsin(-c)  # u·v = g·h = −sin(dip) in the world frame of Eq. 2
+    v = dirs[:, 1] @ np.swapaxes(Q, -1, -2)
+    # Wahba's problem of each pose's two directions, in closed form
+    R = wahba_pair(dirs[:, 0], v, GRAVITY, magnetic_reference(dip)[:, None])  # (B, N, 3, 3)
+    gains = {"accel": K[:, 0], "mag": K[:, 1] @ np.swapaxes(Q, -1, -2)}
+    return _to_frames(problem, gains, {"accel": b[:, 0], "mag": b[:, 1]}, dip, R)
 
 
-def to_frame(problem: Problem, state: State) -> State:
-    """Move the body frame to the one where ``problem.frame``'s gain is symmetric (Sec. 4.3)."""
+def _to_frames(
+    problem: Problem, gains: dict[str, Array], biases: dict[str, Array], dip: Array, R: Array
+) -> list[State]:
+    """Move the body frame of B joint starts to the one where ``problem.frame``'s gain is
+    symmetric (Sec. 4.3), all at once: gains (B, 3, 3), biases (B, 3), dips (B,), rotations
+    (B, N, 3, 3). A start whose frame gain is a reflection is first replaced by its exact twin
+    (:func:`flip_other`)."""
     s = problem.frame
-    K = state.gains[s]
-    if problem.joint and np.linalg.det(K) < 0:
-        state = flip_other(problem, state, other=s)
-        K = state.gains[s]
-    U = orthogonal_polar_factor(K)
-    state = state.copy()
-    for k in state.gains:
-        state.gains[k] = state.gains[k] @ U.T
-    state.gains[s] = 0.5 * (state.gains[s] + state.gains[s].T)
-    state.rotations = U @ state.rotations
-    return state
+    # a reflected frame gain: the exact twin (flip_other) of those starts
+    flip = np.linalg.det(gains[s]) < 0
+    if flip.any():
+        gains = {**gains, s: np.where(flip[:, None, None], -gains[s], gains[s])}
+        dip = np.where(flip, -dip, dip)
+        R = np.where(flip[:, None, None, None], R @ twin_flip(s), R)
+    U = orthogonal_polar_factor(gains[s])
+    Ut = np.swapaxes(U, -1, -2)
+    moved = {k: g @ Ut for k, g in gains.items()}
+    moved[s] = 0.5 * (moved[s] + np.swapaxes(moved[s], -1, -2))
+    R = U[:, None] @ R
+    return [
+        State(
+            {k: g[i] for k, g in moved.items()},
+            {k: x[i].copy() for k, x in biases.items()},
+            float(dip[i]),
+            R[i],
+        )
+        for i in range(len(dip))
+    ]
 
 
 def flip_other(problem: Problem, state: State, other: str) -> State:
@@ -201,7 +268,7 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
     proj = np.einsum("pni,pfij,pnj->pfn", u, Q, v)
     c = proj @ w / w.sum()
     resid = (((proj - c[..., None]) ** 2) @ w).min(axis=1)
-    starts = []
+    chosen = []
     for p in np.argsort(resid)[:keep]:
         fits = {}
         for s, i in (("accel", ia[p]), ("mag", im[p])):
@@ -210,5 +277,5 @@ def few_pose_starts(problem: Problem, n_grid: int = 24, keep: int = 3) -> list[S
             Kr = L @ K[i]
             P, _ = spd_sqrt(Kr @ Kr.T)
             fits[s] = (P, L @ centre[i])
-        starts.append(start_from_fits(problem, fits))
-    return starts
+        chosen.append(fits)
+    return starts_from_fits(problem, chosen)
