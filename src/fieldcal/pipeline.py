@@ -346,6 +346,9 @@ def run_log(
         return _run_continuous(log, P, settings, notes, on_progress)
     # the settings the poses are looked for with (None: given), for the advice on too few
     detection: dict[str, Any] | None = None
+    # True once these very poses passed _check_poses (poses='auto'): checking them again
+    # would pass too, the detection settings only shape a failure's advice
+    checked = False
     if isinstance(poses, PoseSet):
         found = poses
     else:
@@ -365,6 +368,7 @@ def run_log(
                 warnings.warn(w.message, w.category, stacklevel=2)
             if poses == "auto":
                 _check_poses(found, method, log, rate, None if why_not is None else detection)
+                checked = True
         except InputError as exc:
             if poses != "auto" or why_not is not None:
                 raise
@@ -386,10 +390,13 @@ def run_log(
             notes.append(f"poses='auto': calibrated from {found.n} rests found by still detection")
     if P is not None and found.mag is not None:
         found = dataclasses.replace(found, mag=[m @ P.T for m in found.mag])
+        checked = False
     if gravity_sign and found.accel is not None:
         found = dataclasses.replace(found, accel=[-a for a in found.accel])
+        checked = False
     notes.append(_how_found(log, found))
-    _check_poses(found, method, log, rate, detection)
+    if not checked:
+        _check_poses(found, method, log, rate, detection)
     if on_progress is not None:
         on_progress(f"calibrating {found.n} poses ({method})")
     temperature = pose_temperature_samples(log, found.entries)

@@ -4,6 +4,7 @@ against its line-by-line path (the same bytes, or the same error)."""
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import string
 import subprocess
@@ -20,7 +21,7 @@ from hypothesis import strategies as st
 
 import fieldcal.logs.apply as apply_module
 from fieldcal.errors import InputError
-from fieldcal.logs import apply_to_file, read_table
+from fieldcal.logs import apply_to_file, read_table, text_lines
 from fieldcal.logs import text as text_module
 from fieldcal.logs.text import Table, read_careful, read_text
 
@@ -336,6 +337,89 @@ def test_fast_and_careful_agree_on_damaged_logs(tmp_path, log, block, arrow):
     path = _write(tmp_path / "log.csv", content)
     with _blocks(block, arrow):
         _agree(path, decimal=decimal)
+
+
+def _head_outcome(read, path: Path):
+    """The head's lines and byte-order mark as ``read`` gives them, or "unusual"."""
+    with path.open("rb") as handle:
+        try:
+            return read(handle)
+        except text_module._UnusualError:
+            return "unusual"
+
+
+def _head_line_by_line(handle):
+    bom = 3 if handle.read(3) == b"\xef\xbb\xbf" else 0
+    handle.seek(bom)
+    return text_module._head_by_line(handle), bom
+
+
+@_SETTINGS
+@given(log=st.one_of(_logs(), _damaged()), lines=st.integers(1, 12), size=st.integers(1, 300))
+def test_the_head_split_at_once_is_the_head_read_line_by_line(tmp_path, log, lines, size):
+    """A head read as one block and split (small heads and blocks here, so that the head ends
+    inside the file and a block inside a line) is the head read line by line: the same lines,
+    or the same giving up (a long line, a lone carriage return, NUL, bytes that are not
+    UTF-8 ...)."""
+    path = _write(tmp_path / "log.csv", log[0])
+    with mock.patch.multiple(text_module, HEAD_LINES=lines, _HEAD_BYTES=size):
+        fast = _head_outcome(text_module._read_head, path)
+        assert fast == _head_outcome(_head_line_by_line, path)
+
+
+_ROWS = "".join(f"{i},{i / 7:.6f},-{i}\n" for i in range(40))
+
+
+@pytest.mark.parametrize(
+    ("content", "unusual"),
+    [
+        (f"t,ax,ay\n{_ROWS}", False),
+        (f"t,ax,ay\n{_ROWS}".replace("\n", "\r\n"), False),
+        (f"t,ax,ay\n1,2\r3\n{_ROWS}", True),  # a lone carriage return in the head
+        (f"t,ax,ay\n{_ROWS}1,2,3\r", True),  # ... ending the file
+        (f"t,ax,ay\n{_ROWS}1,2,{'9' * 1000}\n", True),  # a line over LONGEST_FIELD
+        (f"t,ax,ay\n{_ROWS}{'9' * 999}\n", False),  # 1,000 bytes with its line break
+        (f"t,ax,ay\n{_ROWS}{'9' * 2000}\n", True),
+        (f"t,ax,ay\n{_ROWS * 8}1,2,{'9' * 2000}\n", False),  # long, but below the head
+        (f"t,ax,ay\n1,2,\x003\n{_ROWS}", True),
+        (f"t,ax,ay\n1,2,é\n{_ROWS}", False),  # UTF-8: line by line
+        ("t,ax,ay\n1,2,\udcff\n" + _ROWS, True),  # not UTF-8
+        (f"\ufefft,ax,ay\n{_ROWS}", False),
+        (f"t,ax,ay\n{_ROWS}9,9,9", False),  # no line break at the end
+    ],
+    ids=lambda v: repr(v)[:24] if isinstance(v, str) else str(v),
+)
+def test_the_head_split_at_once_gives_up_where_line_by_line_does(tmp_path, content, unusual):
+    path = tmp_path / "log.csv"
+    path.write_bytes(content.encode("utf-8", "surrogateescape"))
+    with mock.patch.multiple(text_module, HEAD_LINES=60, _HEAD_BYTES=64):
+        fast = _head_outcome(text_module._read_head, path)
+        assert fast == _head_outcome(_head_line_by_line, path)
+    assert (fast == "unusual") == unusual
+
+
+def test_a_plain_head_is_split_at_once(tmp_path):
+    """A plain ASCII log's head (LF or CRLF) is one read and one split, not line by line."""
+    rows = "".join(f"{i},{i / 7:.6f},-{i}\n" for i in range(3 * text_module.HEAD_LINES))
+    for eol in ("\n", "\r\n"):
+        path = _write(tmp_path / "log.csv", f"# logger\nt,ax,ay\n{rows}".replace("\n", eol))
+        with mock.patch.object(text_module, "_head_by_line", side_effect=AssertionError):
+            lines, bom = _head_outcome(text_module._read_head, path)
+        assert bom == 0 and len(lines) == text_module.HEAD_LINES + 1
+        assert lines[:3] == [f"# logger{eol}", f"t,ax,ay{eol}", f"0,0.000000,-0{eol}"]
+
+
+@settings(max_examples=300, deadline=None)
+@given(line=st.text(alphabet=',;\t "\r\n\x00a1é#', max_size=12))
+def test_fields_split_as_the_csv_module_does(line):
+    """:func:`text_lines._fields` splits a plain line itself: the csv module's fields, or None
+    where it cannot split the line."""
+    for delimiter in (",", ";", "\t"):
+        try:
+            expected = next(csv.reader([line], delimiter=delimiter), [])
+        except csv.Error:
+            expected = None
+        assert text_lines._fields(line, delimiter) == expected
 
 
 @pytest.mark.parametrize("arrow", [False, True])

@@ -54,7 +54,8 @@ from .arrow_parser import float_column, pyarrow_module
 from .columns import explicit_columns, recognise_columns
 from .readers import Table, npz_table, read_table, to_float
 from .rosbag import is_bag, read_bag
-from .text import HEAD_LINES, _split, layout, parse_numbers
+from .text import HEAD_LINES, layout, parse_numbers
+from .text_lines import _split
 
 if TYPE_CHECKING:
     from ..calibration import Calibration

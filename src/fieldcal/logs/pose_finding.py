@@ -265,9 +265,7 @@ def _run_stats(y: Array, starts: Rows, stops: Rows) -> tuple[Array, Array, Rows]
     O(n), no loop over the runs. ``y`` should be of order one (divided by a power of two)."""
     k, n = len(starts), len(y)
     count = stops - starts
-    edges = np.column_stack([starts, stops]).ravel()
-    cut = edges[:-1] if edges[-1] >= n else edges  # reduceat's indices stay below n
-    mean = np.add.reduceat(y, cut, axis=0)[0::2] / count[:, None]
+    mean, edges, cut = _run_means(y, starts, stops)
     # each run's rows less its mean (the gaps' rows are not summed): two passes, no cancelling
     fill = np.zeros((2 * k + 1, y.shape[1]))
     fill[1::2] = mean
@@ -277,15 +275,24 @@ def _run_stats(y: Array, starts: Rows, stops: Rows) -> tuple[Array, Array, Rows]
     return mean, var, count
 
 
+def _run_means(y: Array, starts: Rows, stops: Rows) -> tuple[Array, Rows, Rows]:
+    """Means (k, 3) of the runs ``y[start:stop]`` (:func:`_run_stats`' first pass, where the
+    spread is not wanted), the runs' edges and the indices ``add.reduceat`` summed at."""
+    edges = np.column_stack([starts, stops]).ravel()
+    cut = edges[:-1] if edges[-1] >= len(y) else edges  # reduceat's indices stay below n
+    mean = np.add.reduceat(y, cut, axis=0)[0::2] / (stops - starts)[:, None]
+    return mean, edges, cut
+
+
 def _rms_std(var: Array, count: Rows, scale: float) -> list[float | None]:
     """Each pose's RMS per-axis standard deviation (None for a single sample), as :func:`_std`."""
     std = np.sqrt(var.mean(axis=1)) * scale
     return [float(s) if c > 1 else None for s, c in zip(std.tolist(), count.tolist(), strict=True)]
 
 
-def _grouped(log: Log) -> tuple[Rows, Rows, list[str]]:
-    """Rows of each label, concatenated in the order the labels first appear, the count of
-    each label, and the labels."""
+def _grouped(log: Log) -> tuple[Rows | None, Rows, list[str]]:
+    """Rows of each label, concatenated in the order the labels first appear (None: every
+    row, in order), the count of each label, and the labels."""
     labels = np.asarray(log.pose)
     if labels.dtype.kind == "f":
         keep = np.isfinite(labels)
@@ -295,6 +302,10 @@ def _grouped(log: Log) -> tuple[Rows, Rows, list[str]]:
         text = np.char.strip(labels.astype(str))
         keep = (text != "") & (np.char.lower(text) != "nan")
         labels = text
+    if keep.all():
+        runs = _label_runs(log, labels)
+        if runs is not None:
+            return None, *runs
     rows = np.flatnonzero(keep)
     if rows.size == 0:
         raise InputError(f"{log.path}: the pose column {log.used['pose'][0]!r} has no labels")
@@ -308,6 +319,22 @@ def _grouped(log: Log) -> tuple[Rows, Rows, list[str]]:
     sort = np.argsort(pose_of_row, kind="stable")
     counts = np.bincount(pose_of_row, minlength=len(order))
     return rows[sort], counts, [_label(v) for v in values[order].tolist()]
+
+
+def _label_runs(log: Log, labels: NDArray[Any]) -> tuple[Rows, list[str]] | None:
+    """The counts and labels of every row labelled, each label in one run of rows (as a
+    logger writes the poses one after the other): :func:`_grouped`'s answer without sorting
+    the labels or gathering the rows; None when a label comes back after another."""
+    n = len(labels)
+    if n == 0:
+        return None
+    starts = np.concatenate([[0], np.flatnonzero(labels[1:] != labels[:-1]) + 1])
+    values = labels[starts].tolist()  # (0.0 and -0.0 are one label, as for np.unique)
+    if len(set(values)) != len(values):
+        return None
+    if len(values) == n > 1:
+        _check_row_labels(log, np.arange(n))
+    return np.diff(starts, append=n), [_label(v) for v in values]
 
 
 def _check_row_labels(log: Log, rows: Rows) -> None:
@@ -707,21 +734,27 @@ def _by_column(log: Log, hz: float | None) -> PoseSet:
     rows, counts, labels = _grouped(log)
     ends = np.cumsum(counts)
     # each label's rows are in increasing order: its first and last rows bound it
-    first_rows, lasts = rows[ends - counts], rows[ends - 1]
+    if rows is None:  # every row, in order
+        first_rows, lasts = ends - counts, ends - 1
+    else:
+        first_rows, lasts = rows[ends - counts], rows[ends - 1]
     samples: dict[str, list[Array]] = {}
     means: list[Array] = []
     std: list[float | None] = []
+    spans = list(zip((ends - counts).tolist(), ends.tolist(), strict=True))
     for name in ("accel", "mag"):
         x = getattr(log, name)
         if x is None:
             continue
-        gathered = x[rows]
-        samples[name] = np.split(gathered, ends[:-1])
+        gathered = x if rows is None else x[rows]
+        samples[name] = [gathered[a:b] for a, b in spans]  # views (np.split's, without its cost)
         scale = scale_of(gathered)
-        mean, var, count = _run_stats(gathered / scale, ends - counts, ends)
-        means.append(mean * scale)
         if not std:  # the spread of the first sensor (accelerometer, else magnetometer)
+            mean, var, count = _run_stats(gathered / scale, ends - counts, ends)
             std = _rms_std(var, count, scale)
+        else:
+            mean = _run_means(gathered / scale, ends - counts, ends)[0]
+        means.append(mean * scale)
     entries: list[PoseEntry] = [
         {
             "label": text,
@@ -825,7 +858,7 @@ def _cut(
     means = [motion.means]
     if log.accel is not None and log.mag is not None:  # the motion was measured on the accel
         scale = scale_of(log.mag)
-        means.append(_run_stats(log.mag / scale, starts, stops)[0] * scale)
+        means.append(_run_means(log.mag / scale, starts, stops)[0] * scale)
     _orient(found, means)
     return found
 

@@ -47,6 +47,17 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .arrow_parser import arrow_parser
+from .text_lines import (
+    _all_numbers,
+    _fields,
+    _is_data_line,
+    _is_number,
+    _numberish,
+    _plain,
+    _short,
+    _sniff_delimiter,
+    _split,
+)
 
 __all__ = [
     "ARROW_BLOCKS",
@@ -209,84 +220,6 @@ def to_float(
 
 
 # ----------------------------------------------------------------------------- small helpers
-def _is_number(text: str) -> bool:
-    """A number as every reader of fieldcal reads it: what ``float`` takes, in ASCII and
-    without ``_`` (``float`` also takes ``１２``, ``١٢`` and ``1_000``; numpy's and pyarrow's
-    parsers do not)."""
-    if not text.isascii() or "_" in text:
-        return False
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _plain(cells: NDArray[np.generic]) -> bool:
-    """Text cells free of non-ASCII characters and ``_`` (see :func:`_is_number`); checked
-    on their code points at once."""
-    if cells.dtype.kind != "U" or cells.size == 0:
-        return True
-    codes = np.ascontiguousarray(cells).view(np.uint32)
-    return bool(codes.max() < 128 and not np.any(codes == ord("_")))
-
-
-def _numberish(text: str, delimiter: str | None) -> bool:
-    """A number, with a decimal point or (when commas do not separate fields) a comma."""
-    if _is_number(text):
-        return True
-    return delimiter != "," and "," in text and _is_number(text.replace(",", "."))
-
-
-def _sniff_delimiter(header: str, comma: bool = False) -> str | None:
-    """The delimiter of a header line: ``,`` ``;`` tab, else blanks (None); never ``,`` in a
-    log with decimal commas (``comma``)."""
-    for delimiter in (";", "\t") if comma else (",", ";", "\t"):
-        if delimiter in header:
-            return delimiter
-    return None  # whitespace-separated
-
-
-def _is_data_line(line: str) -> bool:
-    """Not blank and not a ``#`` comment (loggers often write banners)."""
-    return bool(line.strip()) and not line.lstrip().startswith("#")
-
-
-def _split(
-    lines: Sequence[str], delimiter: str | None, path: str = "", first_row: int = 0
-) -> list[list[str]]:
-    """Fields of each line; a line the csv module cannot split (a field over its limit of
-    131,072 characters) is an :class:`InputError` naming the row. ``first_row`` is the data-row
-    number of ``lines[0]`` (0: it is the header line)."""
-    if delimiter is None:
-        return [line.split() for line in lines]
-    reader = csv.reader(lines, delimiter=delimiter)
-    try:
-        return list(reader)
-    except csv.Error as exc:
-        where = f"{path}: " if path else ""
-        row = first_row + reader.line_num - 1
-        line = f"data row {row}" if row > 0 else "the header line"
-        raise InputError(
-            f"{where}cannot split {line} into fields ({exc}); a sensor log has short numeric "
-            "fields: fix that line (an unmatched quote?) or cut it"
-        ) from None
-
-
-def _fields(line: str, delimiter: str | None) -> list[str] | None:
-    """The fields of one line, or None when the csv module cannot split it."""
-    if delimiter is None:
-        return line.split()
-    try:
-        return next(csv.reader([line], delimiter=delimiter), [])
-    except csv.Error:
-        return None
-
-
-def _short(text: str, limit: int = 60) -> str:
-    return repr(text if len(text) <= limit else text[:limit] + "...")
-
-
 def _check_header(path: Path | str, header: list[str]) -> None:
     seen: dict[str, int] = {}
     for j, name in enumerate(header):
@@ -297,12 +230,6 @@ def _check_header(path: Path | str, header: list[str]) -> None:
                 "every column its own name"
             )
         seen[name] = j
-
-
-def _all_numbers(fields: Sequence[str], decimal: str) -> bool:
-    return all(
-        _is_number(f) or (decimal == "," and _is_number(f.replace(",", "."))) for f in fields
-    )
 
 
 def _column(cells: Sequence[str], decimal: str) -> NDArray[np.generic]:
@@ -326,6 +253,23 @@ def _column(cells: Sequence[str], decimal: str) -> NDArray[np.generic]:
         return filled.astype(float)
     except ValueError:
         return column
+
+
+def _is_float_column(cells: Sequence[str], decimal: str) -> bool:
+    """Whether :func:`_column` reads the cells as numbers: at once when every cell is a plain
+    number (ASCII, no ``_`` or NUL, what ``float`` reads: numpy's text-to-float cast calls it,
+    and only drops trailing NULs), else by :func:`_column` itself."""
+    if decimal == ".":
+        joined = "".join(cells)
+        if joined.isascii() and "_" not in joined and "\x00" not in joined:
+            try:
+                for cell in cells:
+                    float(cell)
+            except ValueError:
+                pass
+            else:
+                return True
+    return _column(cells, decimal).dtype.kind == "f"
 
 
 # ----------------------------------------------------------------------------- layout
@@ -375,15 +319,16 @@ _COMMA_NUMBER = re.compile(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?")
 _POINT_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
-def _head(lines: Sequence[str]) -> Sequence[str]:
-    """The lines up to the :data:`HEAD_LINES`-th that is not blank or a comment."""
-    count = 0
+def _head(lines: Sequence[str]) -> tuple[Sequence[str], list[int]]:
+    """The lines up to the :data:`HEAD_LINES`-th that is not blank or a comment, and where
+    those (the head's content) are."""
+    content: list[int] = []
     for i, line in enumerate(lines):
         if _is_data_line(line):
-            count += 1
-            if count == HEAD_LINES:
-                return lines[: i + 1]
-    return lines
+            content.append(i)
+            if len(content) == HEAD_LINES:
+                return lines[: i + 1], content
+    return lines, content
 
 
 def layout(path: Path | str, lines: Sequence[str], decimal: str | None = None) -> Layout:
@@ -411,8 +356,7 @@ def layout(path: Path | str, lines: Sequence[str], decimal: str | None = None) -
     """
     if decimal not in (None, ".", ","):
         raise InputError(f"decimal must be '.' or ',' (or None to recognise it); got {decimal!r}")
-    head = _head(lines)
-    content = [i for i, line in enumerate(head) if _is_data_line(line)]
+    head, content = _head(lines)
     if not content:
         raise InputError(f"{path}: the file is empty; give a CSV with a header line and data rows")
     first = content[0]
@@ -673,12 +617,63 @@ def _short_lines(raw: bytes) -> bool:
     return bool(breaks.view(np.uint64).reshape(-1, _WINDOW // 8).any(axis=1).all())
 
 
+#: Bytes :func:`_read_head` reads at once (more when its lines are long): some 200 lines of a
+#: typical log's 50-100 characters.
+_HEAD_BYTES = 1 << 14
+
+
 def _read_head(handle: BinaryIO) -> tuple[list[str], int]:
     """The first lines as text (up to :data:`HEAD_LINES` data lines) and the byte-order mark's
     length; anything but short UTF-8 lines ending in ``\\n`` is for the careful reader (quotes
-    are allowed here: a header may quote its names; the data blocks are checked again)."""
+    are allowed here: a header may quote its names; the data blocks are checked again).
+    Plain ASCII is read as one block and split (:func:`_ascii_head`), anything else line by
+    line (:func:`_head_by_line`): the same lines, or the same giving up."""
     bom = 3 if handle.read(3) == b"\xef\xbb\xbf" else 0
+    size = _HEAD_BYTES
+    while size <= 16 * _HEAD_BYTES:
+        handle.seek(bom)
+        raw = handle.read(size)
+        lines = _ascii_head(raw, at_end=len(raw) < size)
+        if lines is not None:
+            return lines, bom
+        if len(raw) < size or not raw.isascii():
+            break  # the whole file, or text with other characters: line by line
+        size *= 4
     handle.seek(bom)
+    return _head_by_line(handle), bom
+
+
+def _ascii_head(raw: bytes, at_end: bool) -> list[str] | None:
+    """The head's lines from ``raw``, the file's first bytes (``at_end``: all of it), when its
+    whole lines are plain ASCII (``\\r`` only before ``\\n``, no NUL): split at once, as
+    :func:`_head_by_line` would read them one by one. None when they are not, or do not reach
+    the :data:`HEAD_LINES`-th data line before the end of ``raw``: read them line by line."""
+    whole = raw if at_end else raw[: raw.rfind(b"\n") + 1]
+    if not whole or not whole.isascii() or b"\x00" in whole:
+        return None
+    if b"\r" in whole and whole.count(b"\r") != whole.count(b"\r\n"):
+        return None
+    pieces = whole.decode("ascii").split("\n")
+    last = pieces.pop()  # "" after a final line break; at the end, a last line without one
+    lines = [piece + "\n" for piece in pieces]
+    if last:
+        lines.append(last)
+    count = 0
+    for i, line in enumerate(lines):
+        count += _is_data_line(line)
+        if count == HEAD_LINES:
+            del lines[i + 1 :]
+            break
+    else:
+        if not at_end:
+            return None
+    if max(map(len, lines)) > LONGEST_FIELD:  # bytes: ASCII
+        raise _UnusualError
+    return lines
+
+
+def _head_by_line(handle: BinaryIO) -> list[str]:
+    """:func:`_read_head`'s lines read one by one, each checked."""
     lines: list[str] = []
     count = 0
     while count < HEAD_LINES:
@@ -695,7 +690,7 @@ def _read_head(handle: BinaryIO) -> tuple[list[str], int]:
             raise _UnusualError  # a lone carriage return ends lines for the careful reader
         lines.append(line)
         count += _is_data_line(line)
-    return lines, bom
+    return lines
 
 
 def _numbers(
@@ -827,7 +822,8 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
         ):
             raise _UnusualError
         names = [h.strip() for h in fields]
-        sample = [_fields(line, delimiter) for line in head[found.start :] if _is_data_line(line)]
+        data_lines = [line for line in head[found.start :] if _is_data_line(line)]
+        sample = [_fields(line, delimiter) for line in data_lines]
         if (
             not sample
             or len(set(names)) != len(names)
@@ -836,13 +832,13 @@ def _read_fast(path: Path, decimal: str | None, on_progress: Callable[[str], Non
         ):
             raise _UnusualError  # no data in the head, a duplicate name, a ragged row ...
         kinds = [
-            _column([row[j] for row in sample if row is not None], decimal).dtype.kind == "f"
+            _is_float_column([row[j] for row in sample if row is not None], decimal)
             for j in range(len(names))
         ]
         numeric = [j for j, is_number in enumerate(kinds) if is_number]
         text = [j for j, is_number in enumerate(kinds) if not is_number]
         offset = bom + sum(len(line.encode("utf-8")) for line in head[: found.start])
-        per_row = float(np.mean([len(line) for line in head[found.start :] if _is_data_line(line)]))
+        per_row = sum(map(len, data_lines)) / len(data_lines)
         handle.seek(offset)
         columns = _Columns(len(numeric), int(1.25 * (size - offset) / max(per_row, 2.0)))
         texts: dict[int, list[NDArray[np.str_]]] = {j: [] for j in text}
