@@ -4,7 +4,10 @@ The offline detector (:func:`fieldcal.logs.pose_finding.poses_from_log`) sets it
 noise floor of the whole log, so no pose it finds is final until the log ends. The live form
 runs that same detector on everything received so far, and calls a pose *settled* once the
 device has moved away from it for longer than the detector looks around a sample (a window and
-the trim): from then on its rows do not change unless the noise floor itself moves. When the
+the trim) and the run before found the same pose (each edge within the trim): a window whose
+motion statistic sits at the threshold can cut a pose short in one run and not in the next,
+as the threshold follows the noise floor of the samples so far. From then on its rows do not
+change unless the noise floor itself moves. When the
 stream ends, one last run on all the data gives exactly the offline answer, so a capture and
 ``fieldcal calibrate`` on its recorded log agree by construction.
 
@@ -112,6 +115,7 @@ class LiveDetector:
         self._finished = -math.inf
         self._took = 0.0
         self._held: tuple[int, int] | None = None  # rows of the held pose once captured
+        self._seen: list[tuple[int, int]] = []  # the last run's poses (start, stop)
         self.state = LiveState(None, 0, 0, None, 0, "waiting for samples")
 
     def due(self, rows: int, rate: float | None) -> bool:
@@ -150,7 +154,16 @@ class LiveDetector:
         # a pose is settled when the samples after it reach beyond what its last windows
         # looked at (half a window) plus the trim, and the device is not still there
         margin = detection.window + detection.trim
-        settled = sum(1 for s in detection.segments if s.stop + margin <= n)
+        seen, self._seen = self._seen, [(s.start, s.stop) for s in detection.segments]
+        settled = 0
+        for s in detection.segments:
+            again = any(
+                abs(s.start - a) <= detection.trim and abs(s.stop - b) <= detection.trim
+                for a, b in seen
+            )
+            if s.stop + margin > n or not again:
+                break
+            settled += 1
         still = None
         captured = settled
         if detection.segments and settled < poses.n:
