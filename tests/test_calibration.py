@@ -444,3 +444,71 @@ def test_notebook_html_shows_the_verdict_numbers_and_poses_escaped():
     assert "<b>bold" not in page
     assert page.count("<circle") == cal.n_poses
     assert f"{cal.mag.bias[0]:.5g} ± {cal.mag.bias_std[0]:.2g}" in page
+
+
+# ----------------------------------------------------------------------------- check_values
+def _changed(cal: Calibration, sensor: str | None, **values: object) -> Calibration:
+    """``cal`` with fields of one sensor (or of the result, ``sensor=None``) replaced."""
+    if sensor is None:
+        return dataclasses.replace(cal, **values)
+    return dataclasses.replace(cal, **{sensor: dataclasses.replace(cal.sensor(sensor), **values)})
+
+
+def _with_entry(array: np.ndarray, index: tuple[int, ...], value: float) -> np.ndarray:
+    out = np.array(array, dtype=float)
+    out[index] = value
+    return out
+
+
+_GYRO = SensorCalibration(np.eye(3), np.zeros(3), 1e-6 * np.eye(3), noise_source="user")
+
+#: (sensor, field values, message): each a value check_values refuses.
+_REFUSED = [
+    ("accel", {"gain": _with_entry(np.eye(3), (1, 2), np.nan)}, "accel.gain has NaN or inf"),
+    ("mag", {"bias": np.array([np.inf, 0.0, 0.0])}, "mag.bias has NaN or inf"),
+    ("mag", {"noise_cov": _with_entry(np.eye(3), (0, 0), -1e-6)}, "negative variance"),
+    ("accel", {"noise_cov": np.full((3, 3), 1e301)}, "noise_cov has an entry beyond"),
+    ("accel", {"pose_noise_std": float("nan")}, "pose_noise_std must be a finite"),
+    ("mag", {"pose_noise_std": -1e-3}, "pose_noise_std must be a finite"),
+    ("accel", {"gain": np.array([[1.0, 2.0, 3.0]] * 3)}, "accel.gain is singular"),
+    ("mag", {"gain": _with_entry(np.eye(3), (2, 0), 2e150)}, r"mag.gain\[2,0\] is 2e\+150"),
+    ("accel", {"bias": np.array([0.0, -3e150, 0.0])}, r"accel.bias\[1\] is -3e\+150"),
+    ("mag", {"gain": 1e-201 * np.eye(3)}, "smallest scale is 1e-201"),
+    (None, {"gravity": np.array([0.0, 0.0, np.nan])}, "accel reference field is not finite"),
+    (None, {"magnetic": np.zeros(3)}, "mag reference field is not finite"),
+    (None, {"magnetic": None}, "mag reference field is not finite"),
+    (None, {"rotations": np.full((15, 3, 3), np.nan)}, "rotations has NaN or inf"),
+    (
+        None,
+        {"covariance": ParameterCovariance(("dip_deg",), np.array([[np.inf]]))},
+        "covariance has NaN or inf",
+    ),
+    (None, {"gyro": dataclasses.replace(_GYRO, gain=np.zeros((3, 3)))}, "so rates cannot"),
+    (None, {"gyro": dataclasses.replace(_GYRO, noise_cov=np.full((3, 3), np.nan))}, "gyro.noise"),
+]
+
+
+@pytest.mark.parametrize(("sensor", "values", "match"), _REFUSED)
+def test_check_values_refuses_each_unusable_value_in_one_line(sensor, values, match):
+    """The pass over all the numbers at once lets none of these through: the checks one by
+    one then name it."""
+    bad = _changed(_full_calibration(), sensor, **values)
+    with pytest.raises(ValueError, match=match) as info:
+        bad.check_values()
+    assert str(info.value).startswith("invalid calibration: ") and "\n" not in str(info.value)
+
+
+def test_a_usable_calibration_passes_check_values_at_a_glance(monkeypatch):
+    """The usual case takes the one pass (the checks one by one are not reached), with or
+    without a gyroscope."""
+    from fieldcal import calibration
+
+    def one_by_one(*args: object) -> None:
+        raise AssertionError("the checks one by one ran")
+
+    monkeypatch.setattr(calibration, "_check_range", one_by_one)
+    cal = _full_calibration()
+    cal.check_values()
+    _changed(cal, None, gyro=_GYRO).check_values()
+    with pytest.raises(AssertionError):  # and the spy sees the checks when they run
+        _changed(cal, "mag", pose_noise_std=-1.0).check_values()

@@ -22,6 +22,7 @@ import datetime as _dt
 import functools
 import importlib
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal, cast
@@ -117,10 +118,7 @@ class ParameterCovariance(ArrayDataclass):
 
     def scaled(self, factors: Mapping[str, float]) -> ParameterCovariance:
         """Rescale parameters whose name starts with a key of ``factors`` (e.g. "accel.gain")."""
-        s = np.ones(len(self.names))
-        pairs = zip(_prefixed(self.names, tuple(factors)), factors.values(), strict=True)
-        for where, factor in pairs:  # the last prefix that matches a name sets its factor
-            s[where] = factor
+        s = np.array([*factors.values(), 1.0])[_factor_index(self.names, tuple(factors))]
         return ParameterCovariance(self.names, self.matrix * np.outer(s, s))
 
     def transformed(self, T: Array) -> ParameterCovariance:
@@ -129,10 +127,10 @@ class ParameterCovariance(ArrayDataclass):
 
     @functools.cached_property
     def sensor_blocks(self) -> dict[str, ParameterCovariance | None]:
-        """Each sensor's gain and bias block, names without the sensor prefix (``None`` for a
-        sensor with no parameters here); computed once per covariance, shared by every
-        :class:`Calibration` that holds it."""
-        return {name: _sensor_block(self, name) for name in SENSORS}
+        """Each sensor's (the gyroscope's too) gain and bias block, names without the sensor
+        prefix (``None`` for a sensor with no parameters here); computed once per covariance,
+        shared by every :class:`Calibration` that holds it."""
+        return {name: _sensor_block(self, name) for name in (*SENSORS, GYRO)}
 
 
 def _gain_names(sensor: str) -> list[str]:
@@ -221,8 +219,7 @@ class SensorCalibration(ArrayDataclass):
 
     def __post_init__(self) -> None:
         for name in ("gain", "bias", "noise_cov", "noise_cov_std"):
-            value = getattr(self, name)
-            if value is not None:
+            if (value := getattr(self, name)) is not None:
                 object.__setattr__(self, name, frozen_array(value))
         object.__setattr__(self, "pose_noise_std", float(self.pose_noise_std))
         if self.pose_noise_std_se is not None:
@@ -479,8 +476,7 @@ class Calibration(ArrayDataclass):
 
     def __post_init__(self) -> None:
         for name in ("gravity", "magnetic", "rotations"):
-            value = getattr(self, name)
-            if value is not None:
+            if (value := getattr(self, name)) is not None:
                 object.__setattr__(self, name, frozen_array(value))
         object.__setattr__(self, "poses", tuple(dict(p) for p in self.poses))
         object.__setattr__(self, "gyro_segments", tuple(dict(p) for p in self.gyro_segments))
@@ -488,16 +484,12 @@ class Calibration(ArrayDataclass):
         object.__setattr__(self, "iterations", int(self.iterations))
         object.__setattr__(self, "converged", bool(self.converged))
         blocks = None if self.covariance is None else self.covariance.sensor_blocks
-        for name in SENSORS:  # each sensor sees its block of the one covariance
+        for name in (*SENSORS, GYRO):  # each sensor sees its block of the one covariance
             sensor = getattr(self, name)
             if sensor is not None:
                 block = None if blocks is None else blocks[name]
                 if block is not sensor.covariance and block != sensor.covariance:
                     object.__setattr__(self, name, dataclasses.replace(sensor, covariance=block))
-        if self.gyro is not None:
-            block = _sensor_block(self.covariance, GYRO)
-            if block is not self.gyro.covariance and block != self.gyro.covariance:
-                object.__setattr__(self, GYRO, dataclasses.replace(self.gyro, covariance=block))
         if not self.version:
             object.__setattr__(self, "version", __version__)
         if not self.created:
@@ -551,12 +543,12 @@ class Calibration(ArrayDataclass):
     @property
     def gravity_norm(self) -> float | None:
         """``|g|``: the unit of the calibrated accelerometer."""
-        return None if self.gravity is None else float(np.linalg.norm(self.gravity))
+        return None if self.gravity is None else _norm(self.gravity)
 
     @property
     def field_strength(self) -> float | None:
         """``|h|``: the unit of the calibrated magnetometer."""
-        return None if self.magnetic is None else float(np.linalg.norm(self.magnetic))
+        return None if self.magnetic is None else _norm(self.magnetic)
 
     @property
     def misalignment_deg(self) -> float | None:
@@ -720,48 +712,36 @@ class Calibration(ArrayDataclass):
         power of two and calls this to express the result in the user's units. ``options``,
         when given, are merged into :attr:`options` in the same step.
         """
-        changes: dict[str, object] = {}
-        factors = {
-            f"{name}.{part}": c
-            for name, c in scales.items()
-            if getattr(self, name) is not None and c != 1.0
-            for part in ("gain", "bias", "temp")
-        }
-        covariance = None
-        if factors and self.covariance is not None:
-            covariance = changes["covariance"] = self.covariance.scaled(factors)
-        rows = None
-        for name, c in scales.items():
-            sensor = getattr(self, name)
-            if sensor is None or c == 1.0:
-                continue
+        scaled = {n: c for n, c in scales.items() if getattr(self, n) is not None and c != 1.0}
+        changes: dict[str, Any] = (
+            {} if options is None else {"options": {**self.options, **options}}
+        )
+        covariance = self.covariance
+        if scaled and covariance is not None:
+            parts = ("gain", "bias", "temp")
+            factors = {f"{name}.{part}": c for name, c in scaled.items() for part in parts}
+            covariance = changes["covariance"] = covariance.scaled(factors)
+        rows = [dict(p) for p in self.poses] if scaled else []
+        for name, c in scaled.items():
+            s: SensorCalibration = getattr(self, name)
             changes[name] = dataclasses.replace(
-                sensor,
-                gain=sensor.gain * c,
-                bias=sensor.bias * c,
-                noise_cov=sensor.noise_cov * c * c,
-                noise_cov_std=None
-                if sensor.noise_cov_std is None
-                else sensor.noise_cov_std * c * c,
-                pose_noise_std=sensor.pose_noise_std * c,
-                pose_noise_std_se=None
-                if sensor.pose_noise_std_se is None
-                else sensor.pose_noise_std_se * c,
-                temperature=None if sensor.temperature is None else sensor.temperature.scaled(c),
+                s,
+                gain=s.gain * c,
+                bias=s.bias * c,
+                noise_cov=s.noise_cov * c * c,
+                noise_cov_std=None if s.noise_cov_std is None else s.noise_cov_std * c * c,
+                pose_noise_std=s.pose_noise_std * c,
+                pose_noise_std_se=None if s.pose_noise_std_se is None else s.pose_noise_std_se * c,
+                temperature=None if s.temperature is None else s.temperature.scaled(c),
                 # the block the result will hold (attached here, not by a second replace)
                 covariance=None if covariance is None else covariance.sensor_blocks[name],
             )
-            rows = [dict(p) for p in self.poses] if rows is None else rows
-            for row in rows:
-                if f"{name}_residual" in row:
-                    row[f"{name}_residual"] = [float(x) * c for x in row[f"{name}_residual"]]
-        if rows is not None:
+            key = f"{name}_residual"
+            for row in (r for r in rows if key in r):
+                row[key] = [float(x) * c for x in row[key]]
+        if rows:
             changes["poses"] = tuple(rows)
-        if options is not None:
-            changes["options"] = {**self.options, **options}
-        if not changes:
-            return self
-        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+        return dataclasses.replace(self, **changes) if changes else self
 
     def with_mag_handedness(self, mirrored: bool = False) -> Calibration:
         """The twin of this result whose magnetometer has the requested handedness.
@@ -774,31 +754,25 @@ class Calibration(ArrayDataclass):
         """
         if self.mag is None or self.accel is None or self.magnetic is None:
             return self
-        # signs only: determinants of gains in large raw units overflow
-        relative = np.linalg.slogdet(self.accel.gain)[0] * np.linalg.slogdet(self.mag.gain)[0]
+        # signs only (determinants of gains in large raw units overflow), both in one call
+        relative = np.prod(np.linalg.slogdet(np.array([self.accel.gain, self.mag.gain]))[0])
         if (relative < 0) == bool(mirrored):
             return self
         Ka = self.accel.gain
         accel_frame = bool(np.abs(Ka - Ka.T).max() <= 1e-9 * np.abs(Ka).max())  # symmetric
         name = "mag" if accel_frame else "accel"
-        accel, mag = self.accel, self.mag
-        if name == "mag":
-            mag = dataclasses.replace(mag, gain=-mag.gain)
-        else:
-            accel = dataclasses.replace(accel, gain=-accel.gain)
-        h = self.magnetic
-        covariance = self.covariance
+        sensor: SensorCalibration = getattr(self, name)
+        flipped: Any = dataclasses.replace(sensor, gain=-sensor.gain)
+        h, covariance = self.magnetic, self.covariance
         if covariance is not None:
             covariance = covariance.scaled({f"{name}.gain": -1.0, "dip_deg": -1.0})
-        options = {**self.options, "mag_mirrored": bool(mirrored)}
         return dataclasses.replace(
             self,
-            accel=accel,
-            mag=mag,
+            **{name: flipped},
             magnetic=np.array([h[0], h[1], -h[2]]),
             rotations=self.rotations @ twin_flip(name),
             covariance=covariance,
-            options=options,
+            options={**self.options, "mag_mirrored": bool(mirrored)},
         )
 
     # ----------------------------------------------------------------- JSON
@@ -859,47 +833,40 @@ class Calibration(ArrayDataclass):
             raise ValueError(
                 "invalid calibration: it has neither an accelerometer nor a magnetometer"
             )
-        for name in SENSORS:
-            sensor = getattr(self, name)
-            if sensor is None:
-                continue
+        named = [(n, s) for n in (*SENSORS, GYRO) if (s := getattr(self, n)) is not None]
+        gains = np.array([s.gain for _, s in named])
+        # one SVD for every gain (a gain with NaN or inf is named below, before its SVD)
+        singular = np.linalg.svd(gains, compute_uv=False) if np.isfinite(gains).all() else None
+        if singular is not None and _at_a_glance(self, named, gains, singular):
+            return  # the usual case: every check below passes (they name the first problem)
+        for k, (name, sensor) in enumerate(named):
+            field, q = name != GYRO, sensor.pose_noise_std
             for part in ("gain", "bias", "noise_cov"):
                 if not np.all(np.isfinite(getattr(sensor, part))):
                     raise ValueError(f"invalid calibration: {name}.{part} has NaN or inf entries")
-            if np.any(np.diag(sensor.noise_cov) < 0):
+            if field and np.any(np.diag(sensor.noise_cov) < 0):
                 raise ValueError(
                     f"invalid calibration: {name}.noise_cov has a negative variance on its diagonal"
                 )
-            if np.any(np.abs(sensor.noise_cov) > LARGEST * LARGEST):  # a variance: units²
+            if field and np.any(np.abs(sensor.noise_cov) > LARGEST * LARGEST):  # units²
                 raise ValueError(
                     f"invalid calibration: {name}.noise_cov has an entry beyond {LARGEST**2:g}, "
                     "the square of the largest reading; write the file again with fieldcal"
                 )
-            if not (np.isfinite(sensor.pose_noise_std) and sensor.pose_noise_std >= 0):
+            if field and not (np.isfinite(q) and q >= 0):
                 raise ValueError(
                     f"invalid calibration: {name}.pose_noise_std must be a finite number >= 0"
                 )
-            K = sensor.gain
-            s = np.linalg.svd(K, compute_uv=False)
-            _check_range(name, K, sensor.bias, s)
+            s = np.linalg.svd(sensor.gain, compute_uv=False) if singular is None else singular[k]
+            _check_range(name, sensor.gain, sensor.bias, s)
             if not s[-1] > 1e-12 * s[0]:
                 raise ValueError(
-                    f"invalid calibration: {name}.gain is singular, so readings cannot be corrected"
+                    f"invalid calibration: {name}.gain is singular, so "
+                    f"{'readings' if field else 'rates'} cannot be corrected"
                 )
             ref = self.gravity if name == "accel" else self.magnetic
-            if ref is None or not np.all(np.isfinite(ref)) or not np.linalg.norm(ref) > 0:
+            if field and (ref is None or not (np.isfinite(ref).all() and _norm(ref) > 0)):
                 raise ValueError(f"invalid calibration: the {name} reference field is not finite")
-        if self.gyro is not None:
-            gyro = self.gyro
-            for part in ("gain", "bias", "noise_cov"):
-                if not np.all(np.isfinite(getattr(gyro, part))):
-                    raise ValueError(f"invalid calibration: gyro.{part} has NaN or inf entries")
-            s = np.linalg.svd(gyro.gain, compute_uv=False)
-            _check_range("gyro", gyro.gain, gyro.bias, s)
-            if not s[-1] > 1e-12 * s[0]:
-                raise ValueError(
-                    "invalid calibration: gyro.gain is singular, so rates cannot be corrected"
-                )
         if not np.all(np.isfinite(self.rotations)):
             raise ValueError("invalid calibration: rotations has NaN or inf entries")
         if self.covariance is not None and not np.all(np.isfinite(self.covariance.matrix)):
@@ -909,6 +876,30 @@ class Calibration(ArrayDataclass):
 #: The smallest scale (singular value) of a gain in a file, raw units per unit of field: the
 #: smallest raw scale supported (1e-30) over the largest field taken (1e150) stays above it.
 SMALLEST_GAIN = 1e-200
+
+
+def _at_a_glance(cal: Calibration, named: list[Any], gains: Array, singular: Array) -> bool:
+    """Whether every check of :meth:`Calibration.check_values` passes, in a few operations on
+    all sensors at once (``gains`` finite, ``singular`` their singular values); ``False`` sends
+    the checks one by one, to name the first problem. NaN fails every comparison."""
+    fields = [s for n, s in named if n != GYRO]
+    given = [cal.gravity if n == "accel" else cal.magnetic for n, _ in named if n != GYRO]
+    refs = [r for r in given if r is not None]
+    if len(refs) < len(given):
+        return False
+    noise = np.array([s.noise_cov for s in fields]).reshape(-1, 9)
+    cov = () if cal.covariance is None else (cal.covariance.matrix.ravel(),)
+    must_be_finite = [*refs, cal.rotations.ravel(), *(s.noise_cov.ravel() for _, s in named), *cov]
+    entries = np.concatenate([gains.ravel(), *(s.bias for _, s in named)])
+    return bool(
+        np.isfinite(np.concatenate(must_be_finite)).all()
+        and np.abs(entries).max() <= LARGEST
+        and np.abs(noise).max() <= LARGEST * LARGEST
+        and noise[:, ::4].min() >= 0
+        and all(math.isfinite(s.pose_noise_std) and s.pose_noise_std >= 0 for s in fields)
+        and all(s[-1] > 1e-12 * s[0] and s[-1] >= SMALLEST_GAIN for s in singular.tolist())
+        and all(float(r @ r) > 0 for r in refs)
+    )
 
 
 def _check_range(name: str, gain: Array, bias: Array, singular: NDArray[np.floating[Any]]) -> None:
@@ -935,11 +926,9 @@ def _check_range(name: str, gain: Array, bias: Array, singular: NDArray[np.float
 def _magnitude_ok(value: object) -> bool:
     """A field magnitude: a real number (not a bool) in :func:`fieldcal.limits.in_range`, so
     gains and their covariance stay in floating-point range."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+    if isinstance(value, (bool, np.bool_, np.complexfloating)):
         return False
-    if isinstance(value, np.complexfloating):
-        return False
-    return in_range(float(value))
+    return isinstance(value, (int, float, np.number)) and in_range(float(value))
 
 
 #: The conventions, stated in every document for readers without the docs.
@@ -959,33 +948,44 @@ _SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s 
 
 
 @functools.lru_cache(maxsize=256)
-def _prefixed(names: tuple[str, ...], prefixes: tuple[str, ...]) -> list[list[int]]:
-    """Per prefix, the positions of the names starting with it (found once per set of names)."""
-    return [[i for i, n in enumerate(names) if n.startswith(p)] for p in prefixes]
+def _factor_index(names: tuple[str, ...], prefixes: tuple[str, ...]) -> NDArray[np.intp]:
+    """Per name, the position of the last prefix it starts with (that prefix's factor is its
+    own), ``len(prefixes)`` for none (factor 1); found once per set of names and prefixes."""
+    last = [max((k for k, p in enumerate(prefixes) if n.startswith(p)), default=-1) for n in names]
+    return np.array([len(prefixes) if k < 0 else k for k in last], dtype=np.intp)
 
 
 @functools.lru_cache(maxsize=256)
-def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
-    """One sensor's gain, bias and temperature names (prefix dropped) and positions."""
+def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], Any]:
+    """One sensor's gain, bias and temperature names (prefix dropped) and the index that takes
+    its block: two slices when the positions run in order (the usual layout: a view, not
+    numpy's slower fancy indexing), else :func:`numpy.ix_` of them."""
     first = {n: i for i, n in reversed(list(enumerate(names)))}
     chosen = [n for n in _SENSOR_NAMES[sensor] if n in first]
     chosen += [n for n in names if n.startswith(f"{sensor}.temp[")]
-    return tuple(n.split(".", 1)[1] for n in chosen), tuple(first[n] for n in chosen)
+    idx = [first[n] for n in chosen]
+    run = bool(idx) and idx == list(range(idx[0], idx[0] + len(idx)))
+    take = (slice(idx[0], idx[0] + len(idx)),) * 2 if run else np.ix_(idx, idx)
+    return tuple(n.split(".", 1)[1] for n in chosen), take
 
 
 def _sensor_block(
     covariance: ParameterCovariance | None, sensor: str
 ) -> ParameterCovariance | None:
     """The gain and bias block of one sensor, names without the sensor prefix."""
-    names, idx = ((), ()) if covariance is None else _block_layout(covariance.names, sensor)
+    names, take = ((), ()) if covariance is None else _block_layout(covariance.names, sensor)
     if not names or covariance is None:
         return None
-    return ParameterCovariance(names, covariance.matrix[np.ix_(idx, idx)])
+    return ParameterCovariance(names, covariance.matrix[take])
+
+
+def _norm(v: Array) -> float:
+    """``np.linalg.norm(v)``'s number (``sqrt(v·v)``), without its wrapper's cost."""
+    return math.sqrt(float(v.ravel() @ v.ravel()))
 
 
 def _default_units(cal: Calibration) -> dict[str, str]:
-    g = cal.gravity_norm
-    h = cal.field_strength
+    g, h = cal.gravity_norm, cal.field_strength
     units = {"accel_raw": "as given", "mag_raw": "as given"}
     units["accel_calibrated"] = "|g| = 1" if g is None or g == 1.0 else f"|g| = {g:g}"
     units["mag_calibrated"] = "|h| = 1" if h is None or h == 1.0 else f"|h| = {h:g}"
@@ -994,7 +994,6 @@ def _default_units(cal: Calibration) -> dict[str, str]:
         if ref is not None and h is not None and np.isclose(h, ref.intensity_in(unit), rtol=1e-9):
             units["mag_calibrated"] += f" {unit} ({ref.model} at {ref.place}, {ref.date})"
     if cal.gyro is not None:
-        units["gyro_raw"] = "as given"
-        units["gyro_calibrated"] = "rad/s"
+        units.update(gyro_raw="as given", gyro_calibrated="rad/s")
     units["angles"] = "degrees"
     return units

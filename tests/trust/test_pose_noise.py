@@ -3,11 +3,13 @@ one sample per pose (noise from the residuals)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.trust.pose_noise import solve_pose_variance
+from fieldcal.trust.pose_noise import estimated_share, solve_pose_variance, with_variances
 
 
 def _single_shots(seed, n_poses, sigma_a, sigma_m):
@@ -82,3 +84,27 @@ def test_one_sample_per_pose_variance_is_the_closed_form_newton_reaches(seed):
     newton = solve_pose_variance(proj, np.full_like(proj, 1e-12 * closed), target)
     assert closed == pytest.approx(newton, rel=1e-9)
     assert solve_pose_variance(np.zeros_like(proj), np.zeros_like(proj), target) == 0.0
+
+
+def test_the_share_of_the_pose_variance_is_the_mean_of_the_pose_covariances():
+    """estimated_share in closed form: q² over the mean of tr(Σ/Δ_i + q² I)/3."""
+    s = fieldcal.simulate("paper", seed=2)
+    stats = fieldcal.summarize(s.accel, s.mag)
+    for name, q2 in (("accel", 3e-6), ("mag", 1e-7)):
+        sensor = stats.sensor(name).with_pose_var(q2)
+        covs = sensor.mean_covariances()
+        per_pose = np.trace(covs, axis1=1, axis2=2).mean() / 3.0
+        assert estimated_share(sensor, q2) == pytest.approx(q2 / per_pose, rel=1e-13)
+        assert estimated_share(sensor.with_pose_var(0.0), 0.0) == 0.0
+    one = dataclasses.replace(stats.sensor("mag"), cov=None).with_pose_var(2e-6)
+    assert estimated_share(one, 2e-6) == 1.0  # one sample per pose: q² is all there is
+
+
+def test_statistics_with_the_variances_they_have_are_the_same_object():
+    """What was built from them (the whitened problem) is then reused, not built again."""
+    s = fieldcal.simulate("paper", seed=2)
+    stats = fieldcal.summarize(s.accel, s.mag)
+    assert with_variances(stats, {"accel": 0.0, "mag": 0.0}) is stats
+    changed = with_variances(stats, {"accel": 0.0, "mag": 1e-6})
+    assert changed is not stats and changed.sensor("accel") is stats.sensor("accel")
+    assert changed.sensor("mag").pose_var == 1e-6

@@ -18,6 +18,8 @@ each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattic
 from __future__ import annotations
 
 import functools
+import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,7 +86,7 @@ _S1, _S2, _S3, _S4 = _moments(_SPHERE)
 
 
 def _norm_and_direction(
-    cal: Calibration, sensor: str, direction: bool = True
+    cal: Calibration, sensor: str, direction: bool = True, inverse: Array | None = None
 ) -> tuple[float, float]:
     """RMS relative norm error and RMS direction error (degrees; 0 unless ``direction``) of a
     corrected reading, over the orientations of :data:`_SPHERE`.
@@ -94,12 +96,14 @@ def _norm_and_direction(
     ``z = K⁻ᵀ w`` and ``G`` the Jacobian of ``K u + b`` in ``[vec K, b]`` (row-major), so
     ``Gᵀ z = [z ⊗ u, z]``. The radial part takes ``w = v``, the trace the rows of ``K⁻¹``;
     their means over the orientations are ``Σ P ∘ E[g gᵀ]`` with the moments of ``v``
-    (:func:`_moments`), not one 3x3 covariance per orientation."""
+    (:func:`_moments`), not one 3x3 covariance per orientation. ``inverse``: the gain's
+    inverse when the caller has it already (the heading's solve gives it)."""
     sc = cal.sensor(sensor)
-    ref = float(np.linalg.norm(cal.reference(sensor)))
+    f = cal.reference(sensor)
+    ref = math.sqrt(float(f @ f))  # np.linalg.norm's number, without its wrapper
     P = _param_block(cal.covariance, sensor)
     q2 = sc.pose_noise_std**2
-    Kinv = np.linalg.inv(sc.gain)
+    Kinv: NDArray[np.floating[Any]] = np.linalg.inv(sc.gain) if inverse is None else inverse
     # radial: z = K⁻ᵀ v, g = [z ⊗ u, z]; E[z_j u_a z_k u_b] = |f|² Σ K⁻¹_cj K⁻¹_dk E[v v v v]
     E = np.empty((12, 12))
     KT = Kinv.T
@@ -126,8 +130,14 @@ def _heading(a: Array, m: Array) -> Array:
     North in the body frame is ``(d × m) × d = m |d|² − d (d·m)`` with ``d = −a`` the down
     direction (the field's horizontal part): scale does not change its heading, so nothing is
     normalised."""
-    d0, d1, d2 = -a[..., 0], -a[..., 1], -a[..., 2]
-    m0, m1, m2 = m[..., 0], m[..., 1], m[..., 2]
+    return _heading_of(np.moveaxis(a, -1, 0), np.moveaxis(m, -1, 0))
+
+
+def _heading_of(a: Array, m: Array) -> Array:
+    """:func:`_heading` with the components first, (3, ...): each a contiguous array when the
+    caller lays its readings out so (the heading error's 31 x 36 readings per sensor)."""
+    d0, d1, d2 = -a[0], -a[1], -a[2]
+    m0, m1, m2 = m[0], m[1], m[2]
     dd = d0 * d0 + d1 * d1 + d2 * d2
     dm = d0 * m0 + d1 * m1 + d2 * m2
     return np.asarray(np.arctan2(d1 * dm - m1 * dd, m0 * dd - d0 * dm))
@@ -144,14 +154,19 @@ _ROW, _COL = np.divmod(np.arange(9), 3)
 
 
 @functools.lru_cache(maxsize=64)
-def _positions(names: tuple[str, ...]) -> NDArray[np.intp] | None:
-    """Where both sensors' 24 gain and bias parameters sit among ``names`` (``None``: not all
-    there); one look-up per set of names, not per calibration."""
+def _positions(names: tuple[str, ...]) -> Any:
+    """The index that takes both sensors' 24 gain and bias parameters, in order, out of the
+    covariance of ``names`` (``None``: not all there): two slices when they run in order (the
+    usual layout; a view instead of fancy indexing), else :func:`numpy.ix_` of their
+    positions. One look-up per set of names, not per calibration."""
     where = {n: i for i, n in reversed(list(enumerate(names)))}
     wanted = _NAMES["accel"] + _NAMES["mag"]
     if not all(n in where for n in wanted):
         return None
-    return np.array([where[n] for n in wanted], dtype=np.intp)
+    at = [where[n] for n in wanted]
+    if at == list(range(at[0], at[0] + 24)):
+        return (slice(at[0], at[0] + 24),) * 2
+    return np.ix_(at, at)
 
 
 def _parameter_cov(cal: Calibration) -> Array:
@@ -162,7 +177,7 @@ def _parameter_cov(cal: Calibration) -> Array:
     cov = cal.covariance
     at = None if cov is None else _positions(cov.names)
     if cov is not None and at is not None:  # correlated through the poses
-        C[:24, :24] = cov.matrix[np.ix_(at, at)]
+        C[:24, :24] = cov.matrix[at]
     for k, name in enumerate(("accel", "mag")):
         block = slice(12 * k, 12 * k + 12)
         if at is None or len(cov.sensor_blocks[name].names) != 12:  # type: ignore[union-attr]
@@ -172,58 +187,74 @@ def _parameter_cov(cal: Calibration) -> Array:
     return C
 
 
+#: Which sensor's step each of the 30 heading parameters is perturbed by (accel 0, mag 1).
+_OWNER = np.repeat([0, 1, 0, 1], [12, 12, 3, 3])
+
+
 def _heading_error(cal: Calibration) -> float | None:
+    """The predicted heading error (degrees, RMS over headings); ``None`` without both sensors
+    and their fields."""
+    found = _heading_and_inverses(cal)
+    return None if found is None else found[0]
+
+
+def _heading_and_inverses(cal: Calibration) -> tuple[float, Array] | None:
+    """:func:`_heading_error` and the inverses of the two gains (2, 3, 3), which its solve
+    gives and the norm errors use."""
     if cal.accel is None or cal.mag is None or cal.gravity is None or cal.magnetic is None:
         return None
     # parameters: vec K_a, b_a, vec K_m, b_m (24), then noise n_a, n_m (6); both sensors at
     # once, the same arithmetic per sensor as one at a time
-    K = np.stack([cal.accel.gain, cal.mag.gain])
-    b = np.stack([cal.accel.bias, cal.mag.bias])
-    raw = (_LEVEL @ np.stack([cal.gravity, cal.magnetic]).T).transpose(2, 0, 1)
+    K = np.array([cal.accel.gain, cal.mag.gain])
+    b = np.array([cal.accel.bias, cal.mag.bias])
+    raw = (_LEVEL @ np.array([cal.gravity, cal.magnetic]).T).transpose(2, 0, 1)
     raw = raw @ K.transpose(0, 2, 1) + b[:, None, :]
     # one step per sensor, in its own raw units (the two gains may differ by 10^4): each
     # sensor's parameter and noise rows are perturbed by its step and divided by it below
     step = 1e-6 * np.abs(K).max(axis=(1, 2))
-    steps = np.ones(31)
-    steps[1:25] = np.repeat(step, 12)
-    steps[25:] = np.repeat(step, 3)
     # one solve gives the corrected readings and K⁻¹ (the right-hand sides' last columns)
     rhs = np.concatenate(
         [(raw - b[:, None, :]).transpose(0, 2, 1), np.broadcast_to(_EYE, K.shape)], 2
     )
     solved = np.linalg.solve(K, rhs)
     u, Kinv = solved[:, :, :_HEADINGS].transpose(0, 2, 1), solved[:, :, _HEADINGS:]
-    # corrected readings (31, H, 3) per sensor: unperturbed, then one row per parameter
-    rows = np.broadcast_to(u[:, None], (2, 31, _HEADINGS, 3)).copy()
+    # corrected readings (3, 31, H) per sensor, components first (each a contiguous block
+    # for the heading's arithmetic): unperturbed, then one row per parameter
+    rows = np.broadcast_to(u.transpose(0, 2, 1)[:, :, None], (2, 3, 31, _HEADINGS)).copy()
     # a gain entry K[j, l] + s: Sherman-Morrison, u − s K⁻¹e_j u_l / (1 + s K⁻¹[l, j])
     s = step[:, None]
     denom = 1.0 + s * Kinv[:, _COL, _ROW]
     along = s[:, :, None] * u[:, :, _COL].transpose(0, 2, 1) / denom[:, :, None]  # (2, 9, H)
-    change = along[..., None] * Kinv[:, :, _ROW].transpose(0, 2, 1)[:, :, None, :]
+    change = along[:, None] * Kinv[:, :, _ROW][..., None]  # (2, 3, 9, H)
     # a bias b_j + s moves the reading by −s K⁻¹e_j, a noise n_j + s by +s K⁻¹e_j
-    shift = s[:, :, None] * Kinv.transpose(0, 2, 1)
+    shift = (s[:, :, None] * Kinv)[..., None]  # (2, 3, 3, 1): component, parameter
     for k in range(2):
         first = 1 + 12 * k
-        rows[k, first : first + 9] -= change[k]
-        rows[k, first + 9 : first + 12] -= shift[k][:, None, :]
-        rows[k, 25 + 3 * k : 28 + 3 * k] += shift[k][:, None, :]
-    both = _heading(rows[0], rows[1])
+        rows[k, :, first : first + 9] -= change[k]
+        rows[k, :, first + 9 : first + 12] -= shift[k]
+        rows[k, :, 25 + 3 * k : 28 + 3 * k] += shift[k]
+    both = _heading_of(rows[0], rows[1])
     wrapped = np.remainder(both[1:] - both[0] + np.pi, 2.0 * np.pi) - np.pi
-    J = (wrapped / steps[1:, None]).T  # (H, 30)
-    var = np.einsum("hp,hp->h", J @ _parameter_cov(cal), J)
-    return float(np.degrees(np.sqrt(max(var.mean(), 0.0))))
+    J = (wrapped / step[_OWNER, None]).T  # (H, 30)
+    # the mean over headings of each heading's variance Jₕ C Jₕᵀ, as one sum
+    var = float(np.vdot(J @ _parameter_cov(cal), J)) / _HEADINGS
+    return math.degrees(math.sqrt(max(var, 0.0))), Kinv
 
 
 def predict_accuracy(cal: Calibration) -> Accuracy:
     """The predicted 1σ (RMS) errors of :class:`~fieldcal.calibration.Accuracy` for ``cal``."""
-    accel_norm = tilt = mag_norm = None
+    accel_norm = tilt = mag_norm = heading = None
+    inverses: Array | list[None] = [None, None]
+    found = _heading_and_inverses(cal)
+    if found is not None:  # both sensors: the gains' inverses come with the heading
+        heading, inverses = found
     if cal.accel is not None and cal.gravity is not None:
-        accel_norm, tilt = _norm_and_direction(cal, "accel")
+        accel_norm, tilt = _norm_and_direction(cal, "accel", inverse=inverses[0])
     if cal.mag is not None and cal.magnetic is not None:
-        mag_norm, _ = _norm_and_direction(cal, "mag", direction=False)
+        mag_norm, _ = _norm_and_direction(cal, "mag", direction=False, inverse=inverses[1])
     return Accuracy(
         tilt_deg=tilt,
-        heading_deg=_heading_error(cal),
+        heading_deg=heading,
         accel_norm_rel=accel_norm,
         mag_norm_rel=mag_norm,
     )

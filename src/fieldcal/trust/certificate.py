@@ -41,15 +41,17 @@ def pose_table(
     residual = {s: (-ev.raw[s]).tolist() for s in sensors}
     means = None if stats.temperature is None else stats.temperature.means.tolist()
     shares = (cost / total).tolist() if total > 0 else [0.0] * len(cost)
+    samples = [max(n) for n in zip(*counts.values(), strict=True)]
+    keys = [(s, f"{s}_samples", f"{s}_trimmed", f"{s}_residual") for s in sensors]
     rows = []
     for i, (pose, c) in enumerate(zip(index.tolist(), cost.tolist(), strict=True)):
         row: dict[str, object] = {"index": int(pose)}
-        for s in sensors:
-            row[f"{s}_samples"] = counts[s][i]
+        for s, n_key, cut_key, residual_key in keys:
+            row[n_key] = counts[s][i]
             if s in cut and cut[s][i]:
-                row[f"{s}_trimmed"] = cut[s][i]
-            row[f"{s}_residual"] = residual[s][i]
-        row["samples"] = max(counts[s][i] for s in sensors)
+                row[cut_key] = cut[s][i]
+            row[residual_key] = residual[s][i]
+        row["samples"] = samples[i]
         if means is not None:  # the pose's mean temperature (°C): the report's
             row["temperature"] = float(means[i])
         row["cost"] = c

@@ -320,7 +320,9 @@ def _finish(
     ev = ev_ml if cal is ml else evaluate(cal, stats, runner.body_frame)
     factor = widening(ev_ml, noise, stats)
     unc = ev.uncertainty
-    covariance = ParameterCovariance(unc.covariance.names, unc.covariance.matrix * factor)
+    covariance = unc.covariance  # as it is when not widened (its sensor blocks made once)
+    if factor != 1.0:
+        covariance = ParameterCovariance(covariance.names, covariance.matrix * factor)
     estimated = [s for s in noise.estimated if noise.variance[s] > 0]
     status = "pose noise estimated" if estimated else "ok"
     diagnostics = certify(ev, status)

@@ -35,7 +35,7 @@ from scipy.special import fdtrc
 
 from ..stats.pose_stats import PoseStats
 from .evaluate import Evaluation
-from .pose_noise import PoseNoise, dof_factor
+from .pose_noise import PoseNoise, dof_factor, estimated_share
 
 __all__ = ["REASONS", "PoseTests", "pose_tests"]
 
@@ -127,7 +127,8 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
     stat = np.zeros((n, len(sensors)))
     pval = np.ones((n, len(sensors)))
     radial = np.ones((n, len(sensors)))
-    joint = _joint_deletion(ev, lev)
+    joint: Array | None = None  # the joint deletion identity, computed when first needed
+    joint_made = False
     # every sensor's own test at once: its whitened residuals and leverage blocks, stacked
     blocks = [ev.block(s) for s in sensors]
     own = np.concatenate([lev[:, b, b] for b in blocks]) if len(blocks) > 1 else lev
@@ -144,13 +145,18 @@ def pose_tests(ev: Evaluation, stats: PoseStats, noise: PoseNoise) -> PoseTests:
             # only the estimated share w of each pose mean's variance rescales with it
             J, nu = ev.sensor_cost(s), shares[s]
             ratio = (J - t) / np.maximum(nu - r, 1.0) / max(J / nu, 1e-300)
-            if joint is not None:
-                # the poses' rotations couple the sensors, so one sensor's deletion identity
-                # is only approximate; with few degrees of freedom of its own a pose can seem
-                # to hold all of a sensor's cost (J_s − t_s ≤ 0, the variance left 0, every
-                # test significant): there the pose's joint identity, exact, stands in
-                few = (nu - r) < MIN_OWN_DOF
-                ratio = np.where(few, np.maximum(ratio, joint), ratio)
+            # the poses' rotations couple the sensors, so one sensor's deletion identity is
+            # only approximate; with few degrees of freedom of its own a pose can seem to hold
+            # all of a sensor's cost (J_s − t_s ≤ 0, the variance left 0, every test
+            # significant): there the pose's joint identity, exact, stands in. With enough
+            # degrees of freedom for every pose (30 poses or more, measured) it is not needed,
+            # and its eigen-decompositions of the (N, 6, 6) blocks are not made.
+            few = (nu - r) < MIN_OWN_DOF
+            if few.any():
+                if not joint_made:
+                    joint, joint_made = _joint_deletion(ev, lev), True
+                if joint is not None:
+                    ratio = np.where(few, np.maximum(ratio, joint), ratio)
             scale = np.maximum(1.0 - w + w * np.maximum(ratio, 0.0), max(1.0 - w, 1e-6))
             t = t / scale
             c = dof_factor(stats.sensor(s))
@@ -182,6 +188,4 @@ def _estimated_share(stats: PoseStats, noise: PoseNoise, sensor: str) -> float:
     """The estimated pose-level variance's share of a pose mean's variance (0 when fixed)."""
     if sensor not in noise.estimated or not noise.variance[sensor] > 0:
         return 0.0
-    covs = stats.sensor(sensor).mean_covariances()
-    total = float(np.trace(covs, axis1=1, axis2=2).mean()) / 3.0
-    return min(noise.variance[sensor] / total, 1.0) if total > 0 else 1.0
+    return estimated_share(stats.sensor(sensor), noise.variance[sensor])

@@ -28,6 +28,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
+from math import sqrt
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,7 @@ from ..calibration import Calibration
 from ..stats.pose_stats import PoseStats, SensorStats
 from .evaluate import Evaluation, evaluate
 
-__all__ = ["PoseNoise", "estimate", "solve_pose_variance"]
+__all__ = ["PoseNoise", "estimate", "estimated_share", "solve_pose_variance"]
 
 Array = NDArray[np.float64]
 
@@ -142,10 +143,26 @@ def _initial_variance(means: Array) -> float:
 
 
 def with_variances(stats: PoseStats, variance: dict[str, float]) -> PoseStats:
-    """``stats`` with these pose-level variances."""
-    return stats.replace(
-        **{s: stats.sensor(s).with_pose_var(v) for s, v in variance.items() if s in stats.sensors}
-    )
+    """``stats`` with these pose-level variances (``stats`` itself when it has them already:
+    the same object keeps what was built from it, the whitened problem among them)."""
+    changed = {
+        s: stats.sensor(s).with_pose_var(v)
+        for s, v in variance.items()
+        if s in stats.sensors and stats.sensor(s).pose_var != float(v)
+    }
+    return stats.replace(**changed) if changed else stats
+
+
+def estimated_share(sensor: SensorStats, q2: float) -> float:
+    """The share ``w`` of the estimated pose-level variance ``q2`` in a pose mean's variance,
+    ``tr(Σ/Δ_i + q² I)/3`` averaged over the poses (in closed form: ``tr Σ`` times the mean of
+    ``1/Δ_i``, not one 3x3 covariance per pose)."""
+    within = 0.0
+    if sensor.cov is not None:
+        mean_inverse = float((1.0 / sensor.counts).sum()) / len(sensor.counts)
+        within = float(np.trace(sensor.cov)) * mean_inverse / 3.0
+    total = within + sensor.pose_var
+    return min(q2 / total, 1.0) if total > 0 else 1.0
 
 
 def initial_variances(stats: PoseStats, fixed: dict[str, float | None]) -> PoseStats:
@@ -187,25 +204,27 @@ def estimate(
     current = stats
     ev = evaluate(cal, current, body_frame)
     rounds = 0
+    terms: dict[str, tuple[Array, Array]] = {}  # whitened_terms at ``current`` and ``ev``
     while free and rounds < MAX_ROUNDS:
         rounds += 1
         shares = ev.dof_share()
         new = dict(variance)
+        terms = {s: whitened_terms(current.sensor(s), ev.raw[s]) for s in free}
         for s in free:
-            proj, lam = whitened_terms(current.sensor(s), ev.raw[s])
-            new[s] = solve_pose_variance(proj, lam, shares[s])
+            new[s] = solve_pose_variance(*terms[s], shares[s])
         # settled: the fit made with the current q stands (a change below RTOL is far inside
         # q's own standard error), so no refit is spent on confirming it
-        if all(abs(np.sqrt(new[s]) - np.sqrt(variance[s])) <= RTOL * np.sqrt(new[s]) for s in free):
+        if all(abs(sqrt(new[s]) - sqrt(variance[s])) <= RTOL * sqrt(new[s]) for s in free):
             break
         variance = new
         current = with_variances(stats, variance)
         cal = refit(current, cal)
         ev = evaluate(cal, current, body_frame)
+        terms = {}  # made at the previous point
     shares = ev.dof_share()
     std_se: dict[str, float | None] = {s: None for s in sensors}
     for s in free:
-        proj, lam = whitened_terms(current.sensor(s), ev.raw[s])
+        proj, lam = terms[s] if s in terms else whitened_terms(current.sensor(s), ev.raw[s])
         std_se[s] = _std_error(proj, lam, variance[s], shares[s], dof_factor(current.sensor(s)))
     return cal, current, ev, PoseNoise(variance, std_se, free, rounds)
 
@@ -224,8 +243,7 @@ def widening(ev: Evaluation, noise: PoseNoise, stats: PoseStats) -> float:
         if not q2 > 0:
             continue
         sensor = stats.sensor(s)
-        total = np.trace(sensor.mean_covariances(), axis1=1, axis2=2).mean() / 3.0
-        w = min(q2 / total, 1.0) if total > 0 else 1.0
+        w = estimated_share(sensor, q2)
         nu = dof_factor(sensor) * shares[s]
         # Student's t with 2 or fewer degrees of freedom has no variance: then be generous
         factor = max(factor, 1.0 + w * 2.0 / (nu - 2.0) if nu > 3 else 1.0 + w * 2.0)

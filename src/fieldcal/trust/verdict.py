@@ -329,8 +329,8 @@ def _same_sensor(case: Case) -> Iterator[Fired]:
     # (the intercept is the means' difference): normal equations of a 3x3 system
     A = stats.sensor("accel").means
     Y = stats.sensor("mag").means
-    A = A - A.mean(axis=0)
-    Y = Y - Y.mean(axis=0)
+    A = A - A.sum(axis=0) / len(A)  # np.mean's numbers, without its wrapper
+    Y = Y - Y.sum(axis=0) / len(Y)
     try:
         coef = np.linalg.solve(A.T @ A, A.T @ Y)
     except np.linalg.LinAlgError:  # accelerometer means on a plane: the general solver
@@ -346,14 +346,15 @@ def _pose_noise(case: Case) -> Iterator[Fired]:
         return
     for s in case.stats.sensors:
         sc = case.cal.sensor(s)
-        radius = float(np.linalg.norm(sc.gain @ case.cal.reference(s)))
+        field = sc.gain @ case.cal.reference(s)
+        radius = math.sqrt(float(field @ field))  # np.linalg.norm's number
         if not radius > 0:
             continue
         if sc.pose_noise_std > NOT_RIGID * radius:
             yield "not_rigid", {"sensor": s, "ratio": sc.pose_noise_std / radius}
             continue
         cov = case.stats.sensor(s).cov
-        sample = float(np.sqrt(np.trace(cov) / 3.0)) if cov is not None else 0.0
+        sample = math.sqrt(max(float(np.trace(cov)), 0.0) / 3.0) if cov is not None else 0.0
         if sample > 0 and sc.pose_noise_std > POSE_NOISE_RATIO * sample:
             yield "pose_noise", {"sensor": s, "ratio": sc.pose_noise_std / sample}
 
@@ -364,8 +365,11 @@ def _trimmed(case: Case) -> Iterator[Fired]:
     for s in case.stats.sensors:
         st = case.stats.sensor(s)
         trimmed = st.trimmed
-        if trimmed is not None and trimmed.sum() > 0:
-            share = float(trimmed.sum() / (trimmed.sum() + st.counts.sum()))
+        if trimmed is None:
+            continue
+        cut = trimmed.sum()
+        if cut > 0:
+            share = float(cut / (cut + st.counts.sum()))
             if share > TRIMMED:
                 yield (
                     "trimmed",
@@ -389,6 +393,8 @@ def _accuracy(case: Case) -> Iterator[Fired]:
         if value is None:
             continue
         target = float(getattr(case.targets, target_name)) / (100.0 if relative else 1.0)
+        if value <= target:  # NaN is not: it goes on to be unusable
+            continue
         shown = f"{value:.1%}" if relative else f"{value:.3g}°"
         goal = f"{100 * target:g}%" if relative else f"{target:g}°"
         numbers: dict[str, object] = {
@@ -400,8 +406,7 @@ def _accuracy(case: Case) -> Iterator[Fired]:
         if not value <= UNUSABLE_FACTOR * target:
             yield "unusable", {**numbers, "factor": UNUSABLE_FACTOR}
             return
-        if value > target:
-            worse.append(numbers)
+        worse.append(numbers)
     for numbers in worse:
         yield "accuracy", numbers
 
@@ -448,7 +453,7 @@ _RANK_TOL = 3 * float(np.finfo(float).eps)
 
 def _gains(case: Case) -> Iterator[Fired]:
     sensors = case.sensors
-    shapes = _shapes(np.stack([case.cal.sensor(s).gain for s in sensors]))
+    shapes = _shapes(np.array([case.cal.sensor(s).gain for s in sensors]))
     for s, shaped in zip(sensors, shapes, strict=True):
         if shaped is None:
             continue
