@@ -116,6 +116,7 @@ class LiveDetector:
         self._took = 0.0
         self._held: tuple[int, int] | None = None  # rows of the held pose once captured
         self._seen: list[tuple[int, int]] = []  # the last run's poses (start, stop)
+        self._settled = 0  # poses settled so far
         self.state = LiveState(None, 0, 0, None, 0, "waiting for samples")
 
     def due(self, rows: int, rate: float | None) -> bool:
@@ -151,22 +152,24 @@ class LiveDetector:
         n = log.n
         if final or detection is None:
             return LiveState(poses, poses.n, poses.n, None, n, "", said)
-        # a pose is settled when the samples after it reach beyond what its last windows
-        # looked at (half a window) plus the trim, and the device is not still there
+        # a pose is passed when the samples after it reach beyond what its last windows
+        # looked at (half a window) plus the trim, and the device is not still there; it is
+        # settled once passed and found by the run before too (a pose settled stays so)
         margin = detection.window + detection.trim
+        passed = sum(1 for s in detection.segments if s.stop + margin <= n)
         seen, self._seen = self._seen, [(s.start, s.stop) for s in detection.segments]
-        settled = 0
-        for s in detection.segments:
-            again = any(
+        settled = min(self._settled, passed)
+        for s in detection.segments[settled:passed]:
+            if not any(
                 abs(s.start - a) <= detection.trim and abs(s.stop - b) <= detection.trim
                 for a, b in seen
-            )
-            if s.stop + margin > n or not again:
+            ):
                 break
             settled += 1
+        self._settled = settled
         still = None
-        captured = settled
-        if detection.segments and settled < poses.n:
+        captured = passed  # what the user is told was captured never waits for the check
+        if detection.segments and passed < poses.n:
             last = detection.segments[-1]
             held = n - last.start
             still = held / poses.rate if poses.rate else float(held)
