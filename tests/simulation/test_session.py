@@ -5,6 +5,7 @@ import pytest
 
 import fieldcal
 from fieldcal.metrics import reconstruction_error
+from fieldcal.simulation.session import PRESETS
 
 
 def test_draws_follow_table_1():
@@ -66,6 +67,51 @@ def test_unknown_preset_or_option_is_refused():
         fieldcal.simulate("nope")
     with pytest.raises(ValueError, match="unknown simulate option"):
         fieldcal.simulate(seed=1, gain=3)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"preset": 1}, "unknown preset"),
+        ({"preset": ["paper"]}, "unknown preset"),
+        ({"seed": 1.5}, "seed must be a whole number"),
+        ({"seed": -1}, "seed must be a whole number"),
+        ({"n_poses": 2.5}, "n_poses must be a whole number"),
+        ({"n_poses": "10"}, "n_poses must be a whole number"),
+        ({"n_poses": 0}, "n_poses must be a whole number >= 1"),
+        ({"samples": (5, 2)}, "samples must be"),
+        ({"samples": (0, 0)}, "samples must be"),
+        ({"samples": (2.5, 4)}, "samples must be"),
+        ({"samples": "x"}, "samples must be"),
+        ({"noise_alpha": 0.1}, "noise_alpha must be a"),
+        ({"noise_alpha": (-1.0, 1.0)}, "noise_alpha must be >= 0"),
+        ({"noise_alpha": (float("nan"), 1.0)}, "noise_alpha must be a"),
+        ({"dip_deg": (91.0, 95.0)}, "dip_deg must be"),
+        ({"dip_deg": "x"}, "dip_deg must be"),
+        ({"gain_spread": -1.0}, "gain_spread must be"),
+        ({"bias": float("inf")}, "bias must be"),
+        ({"pose_noise": -1.0}, "pose_noise must be"),
+        ({"pose_noise": "x"}, "pose_noise must be"),
+        ({"pose_noise": (0.1, 0.2, 0.3)}, "pose_noise must be"),
+        ({"mag_axes": [[1, 0], [0, 1]]}, "mag_axes must be"),
+    ],
+)
+def test_options_it_cannot_draw_from_are_refused_in_one_line(kwargs, words):
+    """Every option is checked before drawing: a one-line ValueError naming it and its form,
+    never numpy's TypeError from deep inside (found by benchmarks/fuzz.py)."""
+    with pytest.raises(ValueError, match=words) as info:
+        fieldcal.simulate(**kwargs)
+    assert "\n" not in str(info.value)
+
+
+def test_the_checks_accept_every_preset_and_the_documented_forms():
+    for preset in PRESETS:
+        assert len(fieldcal.simulate(preset, seed=0).accel) >= 8
+    s = fieldcal.simulate(
+        seed=np.int64(3), n_poses=np.int64(9), samples=[3, 3], pose_noise=(0.01, 0.0),
+        dip_deg=(-90, 90), mag_axes=np.diag([1, -1, 1]),
+    )  # fmt: skip
+    assert len(s.accel) == 9 and all(len(p) == 3 for p in s.accel)
 
 
 def test_handheld_poses_are_mostly_tilted_less_than_60_degrees():

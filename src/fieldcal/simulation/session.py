@@ -10,9 +10,9 @@ gains ``I + δK`` with ``δK_ij ~ U[−0.1, 0.1]``, and covariances ``α (…)``
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TypedDict, Unpack
+from typing import TypedDict, Unpack, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -194,7 +194,7 @@ def simulate(
         samples of a pose (the pose-level noise ``Q = q² I``; drawn after everything else, so
         a seed gives the same session with or without it).
     """
-    if preset not in PRESETS:
+    if not isinstance(preset, str) or preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
     known = PRESETS[preset]
     unknown = set(overrides) - set(known)
@@ -203,9 +203,8 @@ def simulate(
     params: Preset = {**known, **overrides}
     if n_poses is not None:
         params["n_poses"] = n_poses
+    _check(params, seed)
     n = int(params["n_poses"])
-    if n < 1:
-        raise ValueError("n_poses must be at least 1")
     rng = np.random.default_rng(seed)
 
     # Table 1, in the paper's order of description.
@@ -278,6 +277,62 @@ def simulate(
         "preset": preset,
     }
     return Session(accel=accel, mag=mag, truth=truth, drawn=drawn)
+
+
+def _whole(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _real(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def _pair(value: object, kind: Callable[[object], bool]) -> bool:
+    """A (low, high) pair of ``kind`` with low <= high, both finite."""
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        return False
+    low, high = value
+    return kind(low) and kind(high) and bool(np.isfinite([low, high]).all()) and low <= high
+
+
+def _check(params: Preset, seed: object) -> None:
+    """Refuse an option :func:`simulate` cannot draw from, in one line naming it and its form."""
+    if seed is not None and not (_whole(seed) and int(cast(int, seed)) >= 0):
+        raise ValueError(f"seed must be a whole number >= 0 or None, got {seed!r}")
+    if not (_whole(params["n_poses"]) and params["n_poses"] >= 1):
+        raise ValueError(f"n_poses must be a whole number >= 1, got {params['n_poses']!r}")
+    samples = params["samples"]
+    if not (_pair(samples, _whole) and samples[0] >= 1):
+        raise ValueError(
+            f"samples must be (min, max) whole numbers with 1 <= min <= max, got {samples!r}"
+        )
+    for name in ("gravity_z", "field_x", "field_z", "noise_alpha"):
+        if not _pair(params[name], _real):
+            raise ValueError(f"{name} must be a (low, high) pair of finite numbers, low <= high")
+    if params["noise_alpha"][0] < 0:
+        raise ValueError("noise_alpha must be >= 0 (a range of noise variances' scale)")
+    dip = params["dip_deg"]
+    if dip is not None and not (_pair(dip, _real) and -90.0 <= dip[0] and dip[1] <= 90.0):
+        raise ValueError(f"dip_deg must be None or a (low, high) pair in [-90, 90], got {dip!r}")
+    for name in ("bias", "gain_spread"):
+        value = params[name]  # type: ignore[literal-required]
+        if not (_real(value) and np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+    noise = params["pose_noise"]
+    pair = noise if isinstance(noise, (tuple, list)) else (noise, noise)
+    if len(pair) != 2 or not all(_real(q) and np.isfinite(q) and q >= 0 for q in pair):
+        raise ValueError(
+            "pose_noise must be a finite number >= 0 or an (accelerometer, magnetometer) pair "
+            f"of them, got {noise!r}"
+        )
+    axes = params["mag_axes"]
+    if axes is not None:
+        try:
+            matrix = np.asarray(axes, dtype=float)
+        except (TypeError, ValueError):
+            matrix = np.empty(0)
+        if matrix.shape != (3, 3) or not np.isfinite(matrix).all():
+            raise ValueError("mag_axes must be a 3x3 matrix (a signed permutation) or None")
 
 
 def _jsonable(params: Mapping[str, object]) -> dict[str, object]:
