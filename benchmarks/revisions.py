@@ -31,6 +31,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,28 +59,28 @@ def export(rev: str, name: str, into: Path) -> None:
         path.write_text(_QUOTED.sub(rf"\1{name}\2", text), encoding="utf-8")
 
 
-def cases(fc: object) -> dict[str, Callable[[], object]]:
+def cases(fc: Any) -> dict[str, Callable[[], Any]]:
     """The three calls of one revision, on the same inputs."""
-    s = fc.simulate("paper", seed=1)  # type: ignore[attr-defined]
+    s = fc.simulate("paper", seed=1)
     a, m = shots(24, 0)
     return {
-        "calibrate, default (Table 1)": lambda: fc.calibrate(s.accel, s.mag),  # type: ignore[attr-defined]
-        "calibrate, seed's model (Table 1)": lambda: fc.calibrate(  # type: ignore[attr-defined]
+        "calibrate, default (Table 1)": lambda: fc.calibrate(s.accel, s.mag),
+        "calibrate, seed's model (Table 1)": lambda: fc.calibrate(
             s.accel, s.mag, pose_noise="none", robust=False
         ),
-        "calibrate, 24 single-reading shots": lambda: fc.calibrate(a, m),  # type: ignore[attr-defined]
+        "calibrate, 24 single-reading shots": lambda: fc.calibrate(a, m),
     }
 
 
-def same_results(a: dict[str, Callable[[], object]], b: dict[str, Callable[[], object]]) -> str:
+def same_results(a: dict[str, Callable[[], Any]], b: dict[str, Callable[[], Any]]) -> str:
     """Largest relative difference of the two revisions' gains over the cases, and verdicts."""
     worst, verdicts = 0.0, []
     for name in a:
         x, y = a[name](), b[name]()
         for sensor in ("accel", "mag"):
-            gx, gy = x.sensor(sensor).gain, y.sensor(sensor).gain  # type: ignore[attr-defined]
+            gx, gy = x.sensor(sensor).gain, y.sensor(sensor).gain
             worst = max(worst, float(np.abs(gx - gy).max() / np.abs(gx).max()))
-        verdicts.append(x.verdict.level == y.verdict.level)  # type: ignore[attr-defined]
+        verdicts.append(x.verdict.level == y.verdict.level)
     same = "the same" if all(verdicts) else "DIFFERENT"
     return f"largest relative difference of the gains {worst:.1e}; verdicts {same}"
 

@@ -105,8 +105,8 @@ def test_options_it_cannot_draw_from_are_refused_in_one_line(kwargs, words):
 
 
 def test_the_checks_accept_every_preset_and_the_documented_forms():
-    for preset in PRESETS:
-        assert len(fieldcal.simulate(preset, seed=0).accel) >= 8
+    for preset, drawn in PRESETS.items():
+        assert len(fieldcal.simulate(preset, seed=0).accel) == drawn["n_poses"]
     s = fieldcal.simulate(
         seed=np.int64(3), n_poses=np.int64(9), samples=[3, 3], pose_noise=(0.01, 0.0),
         dip_deg=(-90, 90), mag_axes=np.diag([1, -1, 1]),
