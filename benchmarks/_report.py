@@ -8,11 +8,14 @@ scripts can be run in any order.
 from __future__ import annotations
 
 import datetime as dt
+import importlib
 import os
 import platform
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy
@@ -69,3 +72,24 @@ def pin_blas_threads():
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(limits=1)
+
+
+def rebind(module: str, attr: str, wrap: Callable[[Any], Any]) -> list[tuple[object, str, Any]]:
+    """Replace fieldcal function ``module.attr`` (``Class.method`` allowed) by ``wrap(fn)``
+    wherever it was imported by name (``from .evaluate import evaluate``); returns the undo
+    list of ``(holder, name, original)``."""
+    owner: object = importlib.import_module(module)
+    name = attr
+    if "." in attr:
+        cls, name = attr.split(".")
+        owner = getattr(owner, cls)
+    fn = getattr(owner, name)
+    wrapped = wrap(fn)
+    holders = [owner] + [
+        m
+        for m in list(sys.modules.values())
+        if getattr(m, "__name__", "").startswith("fieldcal") and getattr(m, name, None) is fn
+    ]
+    for holder in holders:
+        setattr(holder, name, wrapped)
+    return [(holder, name, fn) for holder in holders]

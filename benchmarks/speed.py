@@ -42,7 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _oracle import oracle
-from _report import pin_blas_threads, stamp, write_section
+from _report import pin_blas_threads, rebind, stamp, write_section
 from _small_sets import shots
 
 import fieldcal
@@ -106,22 +106,7 @@ def breakdown(reps: int) -> list[str]:
     fieldcal.calibrate(s.accel, s.mag)  # imports everything the phases live in
     undo = []
     for module, attr, _ in PHASES:
-        owner: object = importlib.import_module(module)
-        name = attr
-        if "." in attr:
-            cls, name = attr.split(".")
-            owner = getattr(owner, cls)
-        fn = getattr(owner, name)
-        wrapped = timed_phase(attr, fn)
-        # rebind the name wherever it was imported (``from .evaluate import evaluate``)
-        holders = [owner] + [
-            m
-            for m in list(sys.modules.values())
-            if getattr(m, "__name__", "").startswith("fieldcal") and getattr(m, name, None) is fn
-        ]
-        for holder in holders:
-            setattr(holder, name, wrapped)
-            undo.append((holder, name, fn))
+        undo += rebind(module, attr, functools.partial(timed_phase, attr))
     try:
         for _ in range(10):
             fieldcal.calibrate(s.accel, s.mag)
