@@ -142,19 +142,8 @@ def step_right_jacobian(h: Array, theta2: Array, half_sinc: Array, cos_half: Arr
         1.0 / 6.0 - theta2 / 120.0,
         (1.0 - 2.0 * half_sinc * cos_half) / np.where(small, 1.0, theta2),
     )
-    out: Array = (b * h)[:, None, :] * h[None, :, :]
-    diag = 1.0 - b * theta2
-    ax, ay, az = a * h[0], a * h[1], a * h[2]
-    out[0, 0] += diag
-    out[1, 1] += diag
-    out[2, 2] += diag
-    out[0, 1] -= az
-    out[0, 2] += ay
-    out[1, 0] += az
-    out[1, 2] -= ax
-    out[2, 0] -= ay
-    out[2, 1] += ax
-    return out
+    # J_r(−h) is the same expression of −h (the negations are exact: the same numbers)
+    return _right_jacobian(-h, theta2, a, b)
 
 
 def _right_jacobian(phi: Array, t2: Array, a: Array, b: Array) -> Array:
