@@ -36,6 +36,9 @@ RANK = {
     "settings": 1.3,  # every reading, detection, fit and trust option, declared once
     "comparison": 1.8,  # two calibrations side by side (called by the calibration)
     "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)
+    "findings": 1.95,  # what an estimator measured that the verdict judges (typed)
+    "covariance": 1.96,  # the named parameters' covariance, the χ² certificate
+    "verdicts": 1.96,  # a verdict and its reasons, the predicted accuracy
     "thermal": 1.9,  # a bias against temperature: the model and its evaluation
     "calibration": 2,
     "stats": 3,

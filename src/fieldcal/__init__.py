@@ -37,8 +37,9 @@ if TYPE_CHECKING:
         Verdict,
     )
     from .errors import InputError
+    from .findings import Findings
     from .logs import Log
-    from .methods import METHODS
+    from .methods import ESTIMATORS, METHODS, estimator
     from .methods.ellipsoid import align, fit_ellipsoid
     from .pipeline import calibrate_log, read_log
     from .planning.next_pose import PlannedPose, plan_poses
@@ -49,10 +50,12 @@ if TYPE_CHECKING:
     from .trust.targets import Targets
 
 __all__ = [
+    "ESTIMATORS",
     "METHODS",
     "Accuracy",
     "Calibration",
     "Diagnostics",
+    "Findings",
     "InputError",
     "Log",
     "ParameterCovariance",
@@ -71,6 +74,7 @@ __all__ = [
     "calibrate",
     "calibrate_log",
     "calibrate_many",
+    "estimator",
     "expected_field",
     "fit_ellipsoid",
     "metrics",
@@ -102,6 +106,9 @@ _LAZY = {
     ),
     "InputError": "fieldcal.errors",
     "METHODS": "fieldcal.methods",
+    "ESTIMATORS": "fieldcal.methods",
+    "estimator": "fieldcal.methods",
+    "Findings": "fieldcal.findings",
     "Session": "fieldcal.simulation.session",
     "simulate": "fieldcal.simulation.session",
     **dict.fromkeys(

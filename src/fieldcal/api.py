@@ -38,6 +38,8 @@ from .settings import (
     NoiseSpec,
     PoseNoiseSpec,
     TrustSettings,
+    renamed,
+    wmm_unit,
 )
 from .stats.noise_models import noise_covariance, per_sensor, pose_noise_value
 from .stats.pose_stats import PoseStats, Samples, brief, summarize_scaled
@@ -110,7 +112,8 @@ class _Checked:
     """The user's settings, checked once, and what follows from them.
 
     ``fit`` and ``trust`` hold the values as given with ``robust`` a ``bool`` and
-    ``false_alarm`` a ``float``; ``trim`` is ``fit.trim`` decided (``None``: as ``robust``);
+    ``false_alarm`` a ``float``; ``trim`` is ``fit.cut_unsteady`` decided (``None``: as
+    ``robust``; the calibration's ``options["trim"]``);
     ``magnitudes`` the field magnitudes given (``None``: not given), ``fixed`` each sensor's
     pose-level variance given (``None``: estimated), ``user_noise`` each sensor's per-sample
     covariance given (raw units)."""
@@ -155,7 +158,7 @@ def _field_strength(value: object, reference: FieldReference | None) -> float | 
     """A number, or ``"wmm"``/``"wmm:uT"``/``"wmm:nT"``: the model's intensity at the site."""
     if not isinstance(value, str):
         return _magnitude(value, "field_strength")
-    unit = {"wmm": "uT", "wmm:ut": "uT", "wmm:µt": "uT", "wmm:nt": "nT"}.get(value.lower())
+    unit = wmm_unit(value)
     if unit is None:
         raise InputError(
             f"field_strength {value[:40]!r} is neither a number nor wmm, wmm:uT or wmm:nT"
@@ -257,12 +260,17 @@ def _check_flags(fit: FitSettings, on_progress: object) -> None:
         )
 
 
+def _given(cut_unsteady: bool | None) -> dict[str, object]:
+    """``cut_unsteady`` as a keyword when given (for :func:`fieldcal.settings.renamed`)."""
+    return {} if cut_unsteady is None else {"cut_unsteady": cut_unsteady}
+
+
 def _check_trim(trim: object, robust: bool) -> bool:
     """``trim`` as a bool (default: the same as ``robust``)."""
     if trim is None:
         return robust
     if not isinstance(trim, (bool, np.bool_)):
-        raise ValueError(f"trim must be True or False, got {brief(trim)}")
+        raise ValueError(f"cut_unsteady must be True or False, got {brief(trim)}")
     return bool(trim)
 
 
@@ -307,7 +315,7 @@ def _check(
     robust = bool(fit.robust)
     if robust is not fit.robust:  # np.bool_: as bool (no copy in the common case)
         fit = dataclasses.replace(fit, robust=robust)
-    trim = _check_trim(fit.trim, fit.robust)
+    trim = _check_trim(fit.cut_unsteady, fit.robust)
     alpha = _probability(trust.false_alarm, "false_alarm")
     if type(trust.false_alarm) is not float:
         trust = dataclasses.replace(trust, false_alarm=alpha)
@@ -344,7 +352,7 @@ def calibrate(
     pose_noise: PoseNoiseSpec = _FIT.pose_noise,
     robust: bool = _FIT.robust,
     false_alarm: float = _TRUST.false_alarm,
-    trim: bool | None = _FIT.trim,
+    cut_unsteady: bool | None = _FIT.cut_unsteady,
     body_frame: str = _FIT.body_frame,
     mag_mirrored: bool = _FIT.mag_mirrored,
     location: LocationSpec | None = _TRUST.location,
@@ -386,9 +394,10 @@ def calibrate(
         is in ``cal.rejected``.
     false_alarm : float
         Family-wise false-alarm rate of the pose tests per calibration (default 0.01).
-    trim : bool, optional
+    cut_unsteady : bool, optional
         Cut samples that are not still (a bump, a tap) inside each pose before Eq. 5/7.
-        Default: the same as ``robust``.
+        Default: the same as ``robust``. (``trim=``, its old name, is taken until the next
+        release.)
     body_frame : {"accel", "mag"}
         Which sensor's gain is made symmetric, fixing the common body frame (Sec. 4.3).
     mag_mirrored : bool
@@ -435,6 +444,9 @@ def calibrate(
     :class:`~fieldcal.settings.TrustSettings` (the option table); :func:`calibrate_with` is the
     same call with those objects.
     """
+    if "trim" in options:  # the old name, for one release
+        given = renamed({"trim": options.pop("trim"), **_given(cut_unsteady)})
+        cut_unsteady = given["cut_unsteady"]  # type: ignore[assignment]  # checked below
     fit = FitSettings(
         method=method,
         gravity=gravity,
@@ -442,7 +454,7 @@ def calibrate(
         noise=noise,
         pose_noise=pose_noise,
         robust=robust,
-        trim=trim,
+        cut_unsteady=cut_unsteady,
         body_frame=body_frame,
         mag_mirrored=mag_mirrored,
     )

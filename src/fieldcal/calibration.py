@@ -25,7 +25,7 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,6 +33,15 @@ from numpy.typing import ArrayLike, NDArray
 from ._frozen import ArrayDataclass, frozen_array
 from ._version import __version__
 from .comparison import Comparison, compare
+from .covariance import (
+    GYRO,
+    SENSORS,
+    Diagnostics,
+    ParameterCovariance,
+    _bias_names,
+    _gain_names,
+)
+from .findings import Findings
 from .geometry.frames import (
     dip_of,
     misalignment_angle_deg,
@@ -46,6 +55,7 @@ from .notebook import calibration_html
 from .reference import FieldReference
 from .serialize import SCHEMA, SCHEMA_VERSION, decode, dumps, encode, upgrade
 from .thermal import TemperatureModel, temperature_names
+from .verdicts import Accuracy, Reason, RejectedPose, Verdict
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -64,112 +74,9 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-Sensor = Literal["accel", "mag"]
 
 _MATRIX = {"shape": (3, 3)}
 _VECTOR = {"shape": (3,)}
-
-#: The sensors of the joint model, in the order every table and parameter vector uses.
-SENSORS: tuple[Sensor, ...] = ("accel", "mag")
-#: The gyroscope: calibrated after the two field sensors, from the motion between the poses.
-GYRO: Literal["gyro"] = "gyro"
-
-
-@dataclass(frozen=True, eq=False)
-class ParameterCovariance(ArrayDataclass):
-    """Covariance of named global parameters (Cramér-Rao bound at the optimum).
-
-    Names follow ``"accel.gain[i,j]"``, ``"accel.bias[i]"``, ``"mag.gain[i,j]"``,
-    ``"mag.bias[i]"`` and ``"dip_deg"`` (0-based indices); gains in the units of
-    :class:`SensorCalibration`, the dip in degrees.
-    """
-
-    names: tuple[str, ...]
-    matrix: Array = field(metadata={"shape": (-1, -1)})
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "names", tuple(self.names))
-        matrix = frozen_array(self.matrix)
-        if matrix.shape != (len(self.names), len(self.names)):
-            raise ValueError("covariance matrix must be square and match the names")
-        object.__setattr__(self, "matrix", matrix)
-
-    def index(self, name: str) -> int:
-        """Position of parameter ``name``; ``KeyError`` listing the known names."""
-        try:
-            return self._positions[name]
-        except KeyError:
-            raise KeyError(f"no parameter named {name!r}; known: {', '.join(self.names)}") from None
-
-    @functools.cached_property
-    def _positions(self) -> dict[str, int]:
-        """Name to position (the first, should a name repeat, as ``tuple.index`` gives)."""
-        return {name: i for i, name in reversed(list(enumerate(self.names)))}
-
-    def std(self, name: str) -> float:
-        """Standard error of one named parameter."""
-        i = self.index(name)
-        return float(np.sqrt(max(self.matrix[i, i], 0.0)))
-
-    def stds(self, names: list[str]) -> Array:
-        """Standard errors of several parameters (0 for names not present)."""
-        diag, where = np.maximum(np.diag(self.matrix), 0.0), self._positions
-        return np.array([np.sqrt(diag[where[n]]) if n in where else 0.0 for n in names])
-
-    def scaled(self, factors: Mapping[str, float]) -> ParameterCovariance:
-        """Rescale parameters whose name starts with a key of ``factors`` (e.g. "accel.gain")."""
-        s = np.array([*factors.values(), 1.0])[_factor_index(self.names, tuple(factors))]
-        return ParameterCovariance(self.names, self.matrix * np.outer(s, s))
-
-    def transformed(self, T: Array) -> ParameterCovariance:
-        """The covariance of ``T @ parameters`` (same names)."""
-        return ParameterCovariance(self.names, T @ self.matrix @ T.T)
-
-    @functools.cached_property
-    def sensor_blocks(self) -> dict[str, ParameterCovariance | None]:
-        """Each sensor's (the gyroscope's too) gain and bias block, names without the sensor
-        prefix (``None`` for a sensor with no parameters here); computed once per covariance,
-        shared by every :class:`Calibration` that holds it."""
-        return {name: _sensor_block(self, name) for name in (*SENSORS, GYRO)}
-
-
-def _gain_names(sensor: str) -> list[str]:
-    return [f"{sensor}.gain[{j},{k}]" for j in range(3) for k in range(3)]
-
-
-def _bias_names(sensor: str) -> list[str]:
-    return [f"{sensor}.bias[{j}]" for j in range(3)]
-
-
-@dataclass(frozen=True, eq=False)
-class Diagnostics(ArrayDataclass):
-    """Goodness of fit at the end of a calibration.
-
-    ``statistic`` is the cost ``J`` of Eq. 8 (the sum over poses and sensors of
-    ``rᵀ C_i⁻¹ r`` with the pose mean's covariance ``C_i = Σ/Δ_i + Q``), which at the
-    maximum-likelihood optimum follows a χ² distribution with ``dof`` degrees of freedom
-    (``3N − 22`` for the joint problem); ``p_value`` is its upper tail probability.
-    ``pose_cost`` (N,) is each pose's contribution to ``J``. ``status`` is a short word from a
-    fixed set (``"ok"``, ``"degenerate poses"``, ``"pose noise estimated"`` ...).
-    """
-
-    statistic: float
-    dof: int
-    p_value: float
-    pose_cost: Array = field(metadata={"shape": (-1,)})
-    status: str = ""
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "pose_cost", frozen_array(self.pose_cost))
-        object.__setattr__(self, "statistic", float(self.statistic))
-        object.__setattr__(self, "p_value", float(self.p_value))
-        object.__setattr__(self, "dof", int(self.dof))
-
-    @property
-    def pose_share(self) -> Array:
-        """Each pose's share of the total cost (sums to 1)."""
-        total = float(np.sum(self.pose_cost))
-        return self.pose_cost / total if total > 0 else np.zeros_like(self.pose_cost)
 
 
 @dataclass(frozen=True, eq=False)
@@ -277,108 +184,6 @@ class SensorCalibration(ArrayDataclass):
 
 
 @dataclass(frozen=True, eq=False)
-class RejectedPose(ArrayDataclass):
-    """A pose left out of the fit because its readings do not fit the model.
-
-    ``index`` is the pose's number in the caller's numbering; ``sensor`` is ``"accel"``,
-    ``"mag"`` or ``"both"``; ``statistic`` the pose's outlier statistic (leverage-corrected,
-    whitened residual, see ``docs/trust.md``) and ``p_value`` its tail probability under the
-    model; ``reason`` one line naming the likely cause.
-    """
-
-    index: int
-    sensor: str
-    statistic: float
-    p_value: float
-    reason: str
-
-
-#: The levels a verdict reason can have, mildest first (a ``note`` never raises the verdict).
-REASON_LEVELS = ("note", "warn", "fail")
-#: The code of a reason that came as plain text (a verdict built by hand, an old file's
-#: sentence that matches no rule).
-PLAIN_CODE = "other"
-
-
-@dataclass(frozen=True)
-class Reason:
-    """One reason of a verdict: a stable ``code`` (what scripts and the batch table read; the
-    rule table in ``docs/trust.md``), its ``level`` (``"note"``, ``"warn"`` or ``"fail"``) and
-    the ``text`` people read (the rule's fixed message with the numbers filled in).
-
-    ``str(reason)`` is the text.
-    """
-
-    code: str
-    level: str
-    text: str
-
-    def __post_init__(self) -> None:
-        if self.level not in REASON_LEVELS:
-            raise ValueError(f"reason level must be note, warn or fail, got {self.level!r}"[:120])
-        for name in ("code", "text"):
-            if not isinstance(getattr(self, name), str):
-                raise ValueError(f"reason {name} must be text")
-        if not self.code or not self.code.replace("_", "").isalnum() or not self.code.isascii():
-            raise ValueError(f"reason code must be a short identifier, got {self.code!r}"[:120])
-
-    def __str__(self) -> str:
-        return self.text
-
-
-@dataclass(frozen=True, eq=False)
-class Verdict(ArrayDataclass):
-    """Whether to trust the calibration: ``level`` in ``"pass" | "warn" | "fail"`` and one
-    :class:`Reason` per finding, each naming the cause and the fix (rules in
-    ``docs/trust.md``), the most severe first.
-
-    A reason given as plain text (older code) becomes ``Reason("other", level, text)`` with the
-    verdict's level (``note`` under ``pass``).
-    """
-
-    level: str
-    reasons: tuple[Reason, ...] = ()
-
-    def __post_init__(self) -> None:
-        if self.level not in ("pass", "warn", "fail"):
-            raise ValueError(f"verdict level must be pass, warn or fail, got {self.level!r}")
-        plain_level = "note" if self.level == "pass" else self.level
-        reasons = tuple(
-            r if isinstance(r, Reason) else Reason(PLAIN_CODE, plain_level, str(r))
-            for r in self.reasons
-        )
-        object.__setattr__(self, "reasons", reasons)
-
-    @property
-    def codes(self) -> tuple[str, ...]:
-        """The reasons' codes, in order (what a script tests)."""
-        return tuple(r.code for r in self.reasons)
-
-    @property
-    def summary(self) -> str:
-        """The level and the codes on one line: ``"WARN (accuracy, untested)"``, ``"PASS"``
-        (what the CLI's first line, the report's banner and the batch table show)."""
-        codes = ", ".join(dict.fromkeys(self.codes))
-        return self.level.upper() + (f" ({codes})" if codes else "")
-
-
-@dataclass(frozen=True, eq=False)
-class Accuracy(ArrayDataclass):
-    """Predicted 1σ errors after calibration, in the user's terms (``None``: not applicable).
-
-    ``tilt_deg``: the angle between the true and the corrected gravity direction, RMS over
-    orientations. ``heading_deg``: a tilt-compensated compass heading for a level device, RMS
-    over headings. ``accel_norm_rel`` / ``mag_norm_rel``: the relative error of ``|a|`` and
-    ``|m|``, RMS over orientations. From the parameter covariance plus the pose-level noise.
-    """
-
-    tilt_deg: float | None = None
-    heading_deg: float | None = None
-    accel_norm_rel: float | None = None
-    mag_norm_rel: float | None = None
-
-
-@dataclass(frozen=True, eq=False)
 class Calibration(ArrayDataclass):
     """The result of a calibration: both sensors, the fields, every pose's rotation.
 
@@ -427,6 +232,9 @@ class Calibration(ArrayDataclass):
     gyro_segments : tuple of dict
         One entry per motion segment the gyroscope was fitted on (``start``, ``stop`` rows,
         ``seconds``, ``angle_deg`` turned, ``residual_deg`` after calibration).
+    findings : Findings
+        What the estimators measured that the verdict's rules judge (:mod:`fieldcal.findings`:
+        the gyroscope stage's misfit, correlated poses, the continuous motion's findings).
     field_reference : FieldReference or None
         JSON key ``reference``. The field the World Magnetic Model expects where and when the
         log was recorded (``location=``, :func:`fieldcal.expected_field`); it decided the
@@ -457,6 +265,7 @@ class Calibration(ArrayDataclass):
     accuracy: Accuracy | None = None
     gyro: SensorCalibration | None = None
     gyro_segments: tuple[dict[str, Any], ...] = field(default=(), repr=False)
+    findings: Findings = field(default_factory=Findings, repr=False)
     field_reference: FieldReference | None = field(
         default=None, repr=False, metadata={"key": "reference"}
     )
@@ -944,41 +753,6 @@ CONVENTIONS = {
 
 
 #: Each sensor's gain and bias parameter names, in the order of its covariance block.
-_SENSOR_NAMES: dict[str, list[str]] = {s: _gain_names(s) + _bias_names(s) for s in (*SENSORS, GYRO)}
-
-
-@functools.lru_cache(maxsize=256)
-def _factor_index(names: tuple[str, ...], prefixes: tuple[str, ...]) -> NDArray[np.intp]:
-    """Per name, the position of the last prefix it starts with (that prefix's factor is its
-    own), ``len(prefixes)`` for none (factor 1); found once per set of names and prefixes."""
-    last = [max((k for k, p in enumerate(prefixes) if n.startswith(p)), default=-1) for n in names]
-    return np.array([len(prefixes) if k < 0 else k for k in last], dtype=np.intp)
-
-
-@functools.lru_cache(maxsize=256)
-def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], Any]:
-    """One sensor's gain, bias and temperature names (prefix dropped) and the index that takes
-    its block: two slices when the positions run in order (the usual layout: a view, not
-    numpy's slower fancy indexing), else :func:`numpy.ix_` of them."""
-    first = {n: i for i, n in reversed(list(enumerate(names)))}
-    chosen = [n for n in _SENSOR_NAMES[sensor] if n in first]
-    chosen += [n for n in names if n.startswith(f"{sensor}.temp[")]
-    idx = [first[n] for n in chosen]
-    run = bool(idx) and idx == list(range(idx[0], idx[0] + len(idx)))
-    take = (slice(idx[0], idx[0] + len(idx)),) * 2 if run else np.ix_(idx, idx)
-    return tuple(n.split(".", 1)[1] for n in chosen), take
-
-
-def _sensor_block(
-    covariance: ParameterCovariance | None, sensor: str
-) -> ParameterCovariance | None:
-    """The gain and bias block of one sensor, names without the sensor prefix."""
-    names, take = ((), ()) if covariance is None else _block_layout(covariance.names, sensor)
-    if not names or covariance is None:
-        return None
-    return ParameterCovariance(names, covariance.matrix[take])
-
-
 def _norm(v: Array) -> float:
     """``np.linalg.norm(v)``'s number (``sqrt(v·v)``), without its wrapper's cost."""
     return math.sqrt(float(v.ravel() @ v.ravel()))

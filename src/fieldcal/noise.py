@@ -63,7 +63,8 @@ from .logs.columns import normalise
 from .logs.inputs import read_log
 from .logs.log import Log
 from .logs.stillness import detect_still
-from .stats.allan import AllanDeviation, NoiseModel, allan_deviation, fit_noise_model
+from .stats.allan import AllanDeviation, allan_deviation
+from .stats.allan_model import NoiseModel, fit_noise_model
 
 __all__ = [
     "GAP",

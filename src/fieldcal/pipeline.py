@@ -19,34 +19,32 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .api import calibrate_with, check_targets, field_settings, targets_for
-from .calibration import Calibration, ParameterCovariance
-from .errors import InputError
+from .calibration import Calibration
+from .errors import MOVING_RESTS, NO_STILL, InputError, MovingRestsWarning
 from .geometry.frames import ACCEL_SIGNS, parse_axes
-from .geometry.rotations import hat, rotation_angle_deg
-from .gyro.estimate import GyroFit, fit_gyro
-from .gyro.gyro_temperature import with_bias_temperature
-from .gyro.integrate import effective_time, segment_turns
-from .likelihood.cramer_rao import pose_rotation_factors
+from .gyro.integrate import effective_time
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.inputs import read_log
 from .logs.log_temperature import pose_temperature_samples
-from .logs.pose_finding import NO_STILL, POSE_SOURCES
+from .logs.pose_finding import POSE_SOURCES
 from .logs.pose_hints import pose_advice
+from .methods import estimator
 from .methods import get as get_method
-from .methods.continuous import fit_continuous
+from .reference import FieldReference
 from .settings import (
     OPTIONS,
-    TARGET_OPTIONS,
     DetectSettings,
     FitSettings,
     ReadSettings,
     TrustSettings,
     changed,
+    renamed,
     settings_of,
 )
 from .stats.pose_stats import check_spread, stats_from_means
 from .trust.continuous_motion import trust_continuous
 from .trust.targets import Targets
+from .trust.verdict import with_late_checks
 
 __all__ = [
     "ACCEL_SIGNS",
@@ -65,24 +63,6 @@ __all__ = [
 #: (:mod:`fieldcal.methods.continuous`: no rests, a gyroscope) and ``"auto"`` (still detection
 #: when the log has enough rests, else continuous when it has a gyroscope and time).
 POSE_MODES = ("auto", *POSE_SOURCES, "continuous")
-#: The still detector's warning that its "rests" move: with ``poses="auto"`` the log is then
-#: calibrated from continuous motion when it can be.
-MOVING_RESTS = "the still intervals found move"
-#: Options of :func:`calibrate` the continuous estimator and its trust path use
-#: (:func:`fieldcal.trust.continuous_motion.trust_continuous`); others are noted as unused.
-CONTINUOUS_OPTIONS = (
-    "gravity",
-    "field_strength",
-    "mag_mirrored",
-    "location",
-    "date",
-    "dip_allowance_deg",
-    "targets",
-    *TARGET_OPTIONS,
-)
-#: Fit options :func:`run_log` itself reads, whatever estimator it runs.
-_LOG_OPTIONS = ("method", "mag_axes", "accel_sign", "gyro")
-
 Array = NDArray[np.float64]
 
 
@@ -230,7 +210,7 @@ class LogSettings:
         -------
         LogSettings
         """
-        keywords = {**(keywords or {}), **more}
+        keywords = renamed({**(keywords or {}), **more}, stacklevel=4)
         own = {k: v for k, v in keywords.items() if k not in OPTIONS and k != "targets"}
         return cls(
             read=settings_of(ReadSettings, keywords),
@@ -284,6 +264,30 @@ def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> None:
         )
 
 
+@dataclass(frozen=True)
+class _Job:
+    """A log's calibration with its settings checked once, whatever the path: the mode chosen
+    (``"continuous"``, a way to find poses, or ``"given"``: ``found``), what the continuous path
+    lacks (``None``: nothing), the input notes, the magnetometer's axis map, and the World
+    Magnetic Model's field, the magnitudes and the targets (checked before any long work)."""
+
+    settings: LogSettings
+    found: PoseSet | None
+    mode: str
+    why_not: str | None
+    notes: tuple[str, ...]
+    axes: Array | None
+    reference: FieldReference | None
+    magnitudes: dict[str, float | None]
+    targets: Targets | None
+
+    @property
+    def may_fall_back(self) -> bool:
+        """``poses="auto"`` on a log the continuous path can take: a still detection that
+        finds too little goes on to the continuous motion."""
+        return self.mode == "auto" and self.why_not is None
+
+
 def run_log(
     log: Log,
     settings: LogSettings = _DEFAULT_SETTINGS,
@@ -291,7 +295,8 @@ def run_log(
     found: PoseSet | None = None,
     on_progress: Callable[[str], None] | None = None,
 ) -> LogCalibration:
-    """Find a log's poses and calibrate from them: the path of ``fieldcal calibrate``.
+    """Find a log's poses and calibrate from them, or from its continuous motion: the path of
+    ``fieldcal calibrate``.
 
     Parameters
     ----------
@@ -310,96 +315,117 @@ def run_log(
     -------
     LogCalibration
     """
+    job = _prepare(log, settings, found)
+    notes = list(job.notes)
+    if job.mode == "continuous":
+        return _run_continuous(log, job, notes, on_progress)
+    try:
+        poses, detection = _poses(log, job, job.found, notes, on_progress)
+    except InputError as exc:
+        if not job.may_fall_back:
+            raise
+        why = "its rests move" if exc.code == MOVING_RESTS else str(exc)
+        notes.append(
+            "poses='auto': calibrated from continuous motion, not from rests (still "
+            f"detection: {why}); the log has a gyroscope and time"
+        )
+        return _run_continuous(log, job, notes, on_progress)
+    return _run_poses(log, job, poses, detection, notes, on_progress)
+
+
+def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
+    """Every setting a log's calibration needs checked once, before the long work, and the
+    mode chosen: the still detector's options given with ``poses="auto"`` ask for rests."""
     detect, fit = settings.detect, settings.fit
-    poses: str | PoseSet = detect.poses if found is None else found
-    accel_sign, mag_axes, method, gyro = fit.accel_sign, fit.mag_axes, fit.method, fit.gyro
-    rate = detect.rate
-    if isinstance(poses, str):
-        _check_choice("poses", poses, POSE_MODES)
-    if gyro is True and log.gyro is None:  # before the long work
+    if found is None and isinstance(detect.poses, PoseSet):  # poses= given found poses
+        found = detect.poses
+    mode = "given" if found is not None else detect.poses
+    if found is None:
+        _check_choice("poses", mode, POSE_MODES)
+    if fit.gyro is True and log.gyro is None:
         raise InputError(
             "the gyroscope cannot be calibrated: the log has no gyroscope columns; name them "
             "with --gyro-cols"
         )
-    _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
-    notes, P = _input_notes(log, mag_axes, accel_sign)
-    gravity_sign = accel_sign == "gravity"
-    tuned = [
-        name
-        for name, value in (
-            ("window", detect.window),
-            ("min_still", detect.min_still),
-            ("still_trim", detect.still_trim),
-            ("still_threshold", detect.still_threshold),
-        )
-        if value is not None
-    ]
-    if poses == "auto" and tuned:  # the still detector's options given: the user wants rests
-        poses = "still"
+    _check_choice("accel_sign", fit.accel_sign, ACCEL_SIGNS)
+    notes, P = _input_notes(log, fit.mag_axes, fit.accel_sign)
+    tuned = [name for name in _STILL_OPTIONS if getattr(detect, name) is not None]
+    if mode == "auto" and tuned:
+        mode = "still"
         notes.append(
             f"poses='auto': still detection, as its options were given ({', '.join(tuned)})"
         )
-    why_not = _why_not_continuous(log, rate, gyro) if poses in ("auto", "continuous") else None
-    if poses == "continuous" and why_not is not None:
+    why_not = None
+    if mode in ("auto", "continuous"):
+        why_not = _why_not_continuous(log, detect.rate, fit.gyro)
+    if mode == "continuous" and why_not is not None:
         raise InputError(f"poses='continuous' (--poses continuous) needs {why_not}")
-    if poses == "continuous":
-        return _run_continuous(log, P, settings, notes, on_progress)
-    # the settings the poses are looked for with (None: given), for the advice on too few
-    detection: dict[str, Any] | None = None
-    # True once these very poses passed _check_poses (poses='auto'): checking them again
-    # would pass too, the detection settings only shape a failure's advice
-    checked = False
-    if isinstance(poses, PoseSet):
-        found = poses
-    else:
-        if on_progress is not None:
-            on_progress(f"finding the poses in {log.path}")
-        # neither the map nor the sign moves a still interval: the poses are found in the
-        # readings as logged and the samples of each are mapped below
-        detection = detect.detector_keywords()
-        try:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                found = _find_poses(log, poses, detection, why_not)
-            moving = [w for w in caught if MOVING_RESTS in str(w.message)]
-            if poses == "auto" and why_not is None and moving:
-                raise InputError(str(moving[0].message))
-            for w in caught:  # the detector's own warnings, passed on
-                warnings.warn(w.message, w.category, stacklevel=2)
-            if poses == "auto":
-                _check_poses(found, method, log, rate, None if why_not is None else detection)
-                checked = True
-        except InputError as exc:
-            if poses != "auto" or why_not is not None:
-                raise
-            why = "its rests move" if MOVING_RESTS in str(exc) else str(exc)
-            notes.append(
-                "poses='auto': calibrated from continuous motion, not from rests (still "
-                f"detection: {why}); the log has a gyroscope and time"
-            )
-            run = _run_continuous(log, P, settings, notes, on_progress)
-            if not run.calibration.converged:
-                # a log of a few rests the estimator cannot follow between them: what the
-                # user can act on is the rests' advice, not an estimate that never settled
-                raise InputError(
-                    f"{exc}; calibrating from the continuous motion instead (the log has a "
-                    "gyroscope and time) did not converge either"
-                ) from None
-            return run
-        if poses == "auto":
-            notes.append(f"poses='auto': calibrated from {found.n} rests found by still detection")
-    if P is not None and found.mag is not None:
-        found = dataclasses.replace(found, mag=[m @ P.T for m in found.mag])
+    reference, magnitudes = field_settings(fit, settings.trust)
+    targets = targets_for(settings.targets, settings.trust)
+    return _Job(settings, found, mode, why_not, tuple(notes), P, reference, magnitudes, targets)
+
+
+#: The still detector's own options (given with ``poses="auto"``, they choose rests).
+_STILL_OPTIONS = ("window", "min_still", "still_trim", "still_threshold")
+
+
+def _poses(
+    log: Log,
+    job: _Job,
+    found: PoseSet | None,
+    notes: list[str],
+    on_progress: Callable[[str], None] | None,
+) -> tuple[PoseSet, dict[str, Any] | None]:
+    """The poses (given, or found in ``log`` as ``job.mode`` says) and the settings they were
+    found with (``None``: given). With ``poses="auto"`` they are checked here, so that too few
+    can go on to the continuous motion; a log whose rests move raises ``MOVING_RESTS``."""
+    if found is not None:
+        return found, None
+    if on_progress is not None:
+        on_progress(f"finding the poses in {log.path}")
+    # neither the map nor the sign moves a still interval: the poses are found in the
+    # readings as logged and the samples of each are mapped later
+    detection = job.settings.detect.detector_keywords()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        poses = _find_poses(log, job.mode, detection, job.why_not)
+    for w in caught:
+        if job.may_fall_back and issubclass(w.category, MovingRestsWarning):
+            raise InputError(str(w.message), code=MOVING_RESTS)
+    for w in caught:  # the detector's own warnings, passed on
+        warnings.warn(w.message, w.category, stacklevel=3)
+    if job.mode == "auto":
+        fit, rate = job.settings.fit, job.settings.detect.rate
+        advice = None if job.why_not is None else detection
+        _check_poses(poses, fit.method, log, rate, advice)
+        notes.append(f"poses='auto': calibrated from {poses.n} rests found by still detection")
+    return poses, detection
+
+
+def _run_poses(
+    log: Log,
+    job: _Job,
+    found: PoseSet,
+    detection: dict[str, Any] | None,
+    notes: list[str],
+    on_progress: Callable[[str], None] | None,
+) -> LogCalibration:
+    """The pose path: the axis map and sign applied to the poses' samples, the poses checked
+    (unless ``poses="auto"`` checked these very ones), :func:`fieldcal.api.calibrate_with`,
+    the gyroscope stage, the conventions folded back."""
+    settings, fit, rate = job.settings, job.settings.fit, job.settings.detect.rate
+    checked = job.mode == "auto"
+    if job.axes is not None and found.mag is not None:
+        found = dataclasses.replace(found, mag=[m @ job.axes.T for m in found.mag])
         checked = False
-    if gravity_sign and found.accel is not None:
+    if fit.accel_sign == "gravity" and found.accel is not None:
         found = dataclasses.replace(found, accel=[-a for a in found.accel])
         checked = False
     notes.append(_how_found(log, found))
     if not checked:
-        _check_poses(found, method, log, rate, detection)
+        _check_poses(found, fit.method, log, rate, detection)
     if on_progress is not None:
-        on_progress(f"calibrating {found.n} poses ({method})")
-    temperature = pose_temperature_samples(log, found.entries)
+        on_progress(f"calibrating {found.n} poses ({fit.method})")
     cal = calibrate_with(
         found.accel,
         found.mag,
@@ -409,21 +435,148 @@ def run_log(
         method_options=settings.method_options,
         on_progress=on_progress,
         time_ordered=found.time_ordered,  # samples, windows: error bars for correlated poses
-        temperature=temperature,
+        temperature=pose_temperature_samples(log, found.entries),
     )
-    if gyro is not False:
+    if fit.gyro is not False:
         # on the fit as made (before an axis map or sign is folded into it): the poses'
         # orientation covariance comes from its noise model and gauge
         if on_progress is not None and log.gyro is not None:
             on_progress("calibrating the gyroscope from the motion between the poses")
-        cal = _gyro_stage(
-            log, found, cal, required=gyro is True, rate=rate, notes=notes, on_progress=on_progress
+        cal = estimator("gyro").fit(
+            log,
+            found,
+            cal,
+            required=fit.gyro is True,
+            rate=rate,
+            notes=notes,
+            on_progress=on_progress,
         )
-    if P is not None and mag_axes is not None:
-        cal = fold_axes(cal, P, mag_axes)
-    if gravity_sign:
-        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
+        cal = with_late_checks(cal)
+    cal = _fold_back(cal, job)
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
+
+
+def _fold_back(cal: Calibration, job: _Job) -> Calibration:
+    """The magnetometer's axis map and the accelerometer's sign folded into the result, so it
+    applies to the raw columns as logged (every path)."""
+    fit = job.settings.fit
+    if job.axes is not None and fit.mag_axes is not None:
+        cal = fold_axes(cal, job.axes, fit.mag_axes)
+    if fit.accel_sign == "gravity":
+        cal = fold_axes(cal, -np.eye(3), fit.accel_sign, sensor="accel")
+    return cal
+
+
+def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | None) -> PoseSet:
+    """:func:`poses_from_log`; when still detection finds no rest, the error says which other
+    settings find how many poses (not when ``poses='auto'`` goes on to continuous motion:
+    ``why_not`` None)."""
+    try:
+        return poses_from_log(log, poses="still" if poses == "auto" else poses, **detection)
+    except InputError as exc:
+        if exc.code != NO_STILL or (poses == "auto" and why_not is None):
+            raise
+        advice = pose_advice(log, **detection)
+        if advice is None:
+            raise
+        raise InputError(f"{str(exc).split('; try ', 1)[0]}; {advice}", code=NO_STILL) from None
+
+
+def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str | None:
+    """What the continuous estimator lacks in this log (``None``: nothing)."""
+    missing = [
+        what
+        for what, absent in (
+            ("accelerometer", log.accel is None),
+            ("magnetometer", log.mag is None),
+            ("gyroscope (--gyro-cols)", log.gyro is None),
+        )
+        if absent
+    ]
+    if missing:
+        return f"{' and '.join(missing)} columns"
+    if log.time is None and rate is None:
+        return "a time column (--time-col) or the sample rate (--rate)"
+    if gyro is False:
+        return "the gyroscope, but gyro=False (--no-gyro) was given"
+    return None
+
+
+def _unused_by_continuous(settings: LogSettings) -> list[str]:
+    """The options given that the continuous path does not read (``Option.paths``), and the
+    pose method's own options."""
+    given = {**changed(settings.fit), **changed(settings.trust)}
+    unused = [k for k in given if "continuous" not in OPTIONS[k].paths]
+    unused += [k for k, v in settings.method_options.items() if v is not None and v is not False]
+    return sorted(unused)
+
+
+def _run_continuous(
+    log: Log,
+    job: _Job,
+    notes: list[str],
+    on_progress: Callable[[str], None] | None,
+) -> LogCalibration:
+    """The continuous-motion estimator on the whole log (:func:`fieldcal.methods.continuous.
+    fit_continuous`) and the shared trust path (:func:`fieldcal.trust.continuous_motion.
+    trust_continuous`: handedness, the reference, accuracy, verdict), the axis map and the
+    accelerometer's sign folded back as for poses."""
+    assert log.accel is not None and log.mag is not None and log.gyro is not None
+    settings = job.settings
+    fit, rate = settings.fit, settings.detect.rate
+    gravity, field_strength = job.magnitudes["accel"], job.magnitudes["mag"]
+    if log.time is not None and rate is None:
+        time = effective_time(log.time)
+    else:
+        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
+    unused = _unused_by_continuous(settings)
+    if unused:
+        notes.append(f"not used by the continuous estimator: {', '.join(unused)}")
+    accel = -log.accel if fit.accel_sign == "gravity" else log.accel
+    mag = log.mag if job.axes is None else log.mag @ job.axes.T
+    if on_progress is not None:
+        on_progress(f"calibrating from continuous motion ({log.n} samples)")
+    try:
+        cal = estimator("continuous").fit(
+            time,
+            accel,
+            mag,
+            log.gyro,
+            rows=log.index,
+            gravity=gravity,
+            on_progress=on_progress,
+            temperature=log.temperature,
+        )
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
+        raise InputError(
+            "the continuous fit failed in floating point; check that the time column is in "
+            "seconds (or give --rate) and the gyroscope in rad/s"
+        ) from None
+    cal = cal.with_field_magnitudes(gravity, field_strength)
+    cal = trust_continuous(
+        cal,
+        mag_mirrored=bool(fit.mag_mirrored),
+        reference=job.reference,
+        dip_allowance_deg=float(settings.trust.dip_allowance_deg),
+        targets=job.targets,
+        magnitudes=job.magnitudes,
+    )
+    cal = _fold_back(cal, job)
+    traj = cal.options["trajectory"]
+    notes.append(
+        f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "
+        f"{100 * traj['gravity_coverage']:.0f} % of gravity directions visited, "
+        f"{len(cal.options['downweighted'])} stretch(es) down-weighted for body acceleration"
+    )
+    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    if log.device is not None:
+        provenance["device"] = log.device
+    hz = float(rate) if rate is not None else log.rate
+    if hz is not None:
+        provenance["rate"] = float(hz)
+    cal = dataclasses.replace(cal, options={**cal.options, **provenance})
+    found = PoseSet(None, None, [], None, hz, source="continuous")
+    return LogCalibration(cal, found, tuple(notes))
 
 
 def _input_notes(log: Log, mag_axes: str | None, accel_sign: str) -> tuple[list[str], Array | None]:
@@ -473,284 +626,6 @@ def _with_pose_rows(cal: Calibration, found: PoseSet, log: Log) -> Calibration:
     if found.rate is not None:  # the sample rate: noise densities (Kalibr) need it
         provenance["rate"] = float(found.rate)
     return dataclasses.replace(cal, poses=tuple(rows), options={**cal.options, **provenance})
-
-
-def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | None) -> PoseSet:
-    """:func:`poses_from_log`; when still detection finds no rest, the error says which other
-    settings find how many poses (not when ``poses='auto'`` goes on to continuous motion:
-    ``why_not`` None)."""
-    try:
-        return poses_from_log(log, poses="still" if poses == "auto" else poses, **detection)
-    except InputError as exc:
-        text = str(exc)
-        if NO_STILL not in text or (poses == "auto" and why_not is None):
-            raise
-        advice = pose_advice(log, **detection)
-        if advice is None:
-            raise
-        raise InputError(f"{text.split('; try ', 1)[0]}; {advice}") from None
-
-
-def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str | None:
-    """What the continuous estimator lacks in this log (``None``: nothing)."""
-    missing = [
-        what
-        for what, absent in (
-            ("accelerometer", log.accel is None),
-            ("magnetometer", log.mag is None),
-            ("gyroscope (--gyro-cols)", log.gyro is None),
-        )
-        if absent
-    ]
-    if missing:
-        return f"{' and '.join(missing)} columns"
-    if log.time is None and rate is None:
-        return "a time column (--time-col) or the sample rate (--rate)"
-    if gyro is False:
-        return "the gyroscope, but gyro=False (--no-gyro) was given"
-    return None
-
-
-def _run_continuous(
-    log: Log,
-    P: Array | None,
-    settings: LogSettings,
-    notes: list[str],
-    on_progress: Callable[[str], None] | None,
-) -> LogCalibration:
-    """The continuous-motion estimator on the whole log (:func:`fieldcal.methods.continuous.
-    fit_continuous`) and the shared trust path (:func:`fieldcal.trust.continuous_motion.
-    trust_continuous`: handedness, the reference, accuracy, verdict), the axis map and the
-    accelerometer's sign folded back as for poses."""
-    assert log.accel is not None and log.mag is not None and log.gyro is not None
-    fit, rate = settings.fit, settings.detect.rate
-    mag_axes, accel_sign = fit.mag_axes, fit.accel_sign
-    # checked before the long work, as calibrate_with checks them
-    reference, magnitudes = field_settings(fit, settings.trust)
-    gravity, field_strength = magnitudes["accel"], magnitudes["mag"]
-    targets = targets_for(settings.targets, settings.trust)
-    if log.time is not None and rate is None:
-        time = effective_time(log.time)
-    else:
-        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
-    unused = sorted(
-        k
-        for k, v in settings.given().items()
-        if k not in CONTINUOUS_OPTIONS
-        and k not in _LOG_OPTIONS
-        and v is not None
-        and v is not False
-        and v != "auto"
-    )
-    if unused:
-        notes.append(f"not used by the continuous estimator: {', '.join(unused)}")
-    accel = -log.accel if accel_sign == "gravity" else log.accel
-    mag = log.mag if P is None else log.mag @ P.T
-    if on_progress is not None:
-        on_progress(f"calibrating from continuous motion ({log.n} samples)")
-    try:
-        cal = fit_continuous(
-            time,
-            accel,
-            mag,
-            log.gyro,
-            rows=log.index,
-            gravity=gravity,
-            on_progress=on_progress,
-            temperature=log.temperature,
-        )
-    except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
-        raise InputError(
-            "the continuous fit failed in floating point; check that the time column is in "
-            "seconds (or give --rate) and the gyroscope in rad/s"
-        ) from None
-    cal = cal.with_field_magnitudes(gravity, field_strength)
-    cal = trust_continuous(
-        cal,
-        mag_mirrored=bool(fit.mag_mirrored),
-        reference=reference,
-        dip_allowance_deg=float(settings.trust.dip_allowance_deg),
-        targets=targets,
-        magnitudes=magnitudes,
-    )
-    if P is not None and mag_axes is not None:
-        cal = fold_axes(cal, P, mag_axes)
-    if accel_sign == "gravity":
-        cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
-    traj = cal.options["trajectory"]
-    notes.append(
-        f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "
-        f"{100 * traj['gravity_coverage']:.0f} % of gravity directions visited, "
-        f"{len(cal.options['downweighted'])} stretch(es) down-weighted for body acceleration"
-    )
-    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
-    if log.device is not None:
-        provenance["device"] = log.device
-    hz = float(rate) if rate is not None else log.rate
-    if hz is not None:
-        provenance["rate"] = float(hz)
-    cal = dataclasses.replace(cal, options={**cal.options, **provenance})
-    found = PoseSet(None, None, [], None, hz, source="continuous")
-    return LogCalibration(cal, found, tuple(notes))
-
-
-def _log_rows(log: Log, entry: Mapping[str, Any]) -> tuple[int, int]:
-    """A pose's first and stop positions among the log's kept rows (``start``/``stop`` are
-    data-row numbers)."""
-    first = int(np.searchsorted(log.index, int(entry["start"])))
-    stop = int(np.searchsorted(log.index, int(entry["stop"]) - 1)) + 1
-    return first, stop
-
-
-def _gyro_stage(
-    log: Log,
-    found: PoseSet,
-    cal: Calibration,
-    *,
-    required: bool,
-    rate: float | None,
-    notes: list[str],
-    on_progress: Callable[[str], None] | None = None,
-) -> Calibration:
-    """The gyroscope, fitted to the motion between the fitted poses (:func:`fieldcal.gyro.
-    fit_gyro`): with both field sensors, to the rotations the joint fit found; with the
-    accelerometer alone, to the gravity directions. ``required`` (``gyro=True``) turns every
-    reason not to into an error; otherwise the reason is a note and the result has no gyro."""
-
-    def skip(reason: str) -> Calibration:
-        if required:
-            raise InputError(f"the gyroscope cannot be calibrated: {reason}")
-        if log.gyro is not None:
-            notes.append(f"gyroscope not calibrated: {reason}")
-        return cal
-
-    if log.gyro is None:
-        return skip("the log has no gyroscope columns; name them with --gyro-cols")
-    if found.source == "samples":
-        return skip(
-            "poses='samples' leaves no motion between the poses to integrate; use "
-            "poses='continuous' (--poses continuous) for a log with a gyroscope"
-        )
-    if cal.accel is None:
-        return skip("it needs the accelerometer (the gravity directions) to be calibrated")
-    if log.time is not None and rate is None:
-        time = log.time
-    elif rate is not None or log.rate is not None:
-        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
-    else:
-        return skip("the log has no time column; give one or the sample rate (--rate)")
-    dropped = {r.index for r in cal.rejected}
-    kept = [i for i in range(found.n) if i not in dropped]
-    if any("start" not in found.entries[i] or "stop" not in found.entries[i] for i in kept):
-        return skip("the poses are not intervals of the log in time order (a pose column)")
-    rows = [_log_rows(log, found.entries[i]) for i in kept]
-    try:
-        # the poses' rotation covariance in its structure: linear in the number of poses
-        C = pose_rotation_factors(cal)
-        if cal.mag is not None and cal.magnetic is not None:
-            fit = fit_gyro(
-                time,
-                log.gyro,
-                rows,
-                cal.rotations,
-                rotation_cov=C,
-                on_progress=on_progress,
-            )
-        else:
-            gravity = cal.correct_accel(found.means("accel")[kept])
-            # the directions' errors from the poses' tilts: blockdiag(−[g_i]×) C blockdiag(...)ᵀ
-            fit = fit_gyro(
-                time,
-                log.gyro,
-                rows,
-                gravity_body=gravity,
-                gravity_cov=C.transformed(hat(gravity)),
-                on_progress=on_progress,
-            )
-        # the still poses' temperatures: the bias a polynomial in them, about the others' T_ref
-        temps = pose_temperature_samples(log, [found.entries[i] for i in kept])
-        if temps is not None:
-            refs = [s.temperature.reference for s in (cal.accel, cal.mag) if s and s.temperature]
-            means = [float(np.mean(t)) for t in temps]
-            fit = with_bias_temperature(fit, means, refs[0] if refs else None)
-    except InputError as exc:
-        return skip(str(exc))
-    except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
-        return skip(
-            "its fit failed in floating point; check that the time column is in seconds "
-            "(or give --time-col / --rate)"
-        )
-    used = len(fit.segments)
-    if fit.rejected:
-        notes.append(
-            f"gyroscope: {len(fit.rejected)} of {used + len(fit.rejected)} motion segments left "
-            "out: their integrated turn disagrees with the poses' (a bump, a gap in the log, or "
-            "timestamps that are not the samples' own)"
-        )
-    if fit.p_value < 0.01:
-        notes.append(
-            f"gyroscope: the motion segments disagree with the model beyond their noise "
-            f"(p = {fit.p_value:.2g}); its error bars are widened by {fit.widening:.3g}"
-        )
-    return with_gyro(cal, fit, log, time)
-
-
-def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64]) -> Calibration:
-    """``cal`` with the gyroscope of ``fit``: its parameters, their covariance beside the
-    others' (no correlation kept), the motion segments and how it was fitted."""
-    assert log.gyro is not None  # the readings it was fitted to
-    sensor = fit.sensor
-    covariance = cal.covariance
-    if covariance is not None:
-        n, m = len(covariance.names), len(fit.covariance.names)
-        matrix = np.zeros((n + m, n + m))
-        matrix[:n, :n] = covariance.matrix
-        matrix[n:, n:] = fit.covariance.matrix
-        covariance = ParameterCovariance((*covariance.names, *fit.covariance.names), matrix)
-    spans = np.array(fit.segments, dtype=np.int64).reshape(-1, 2)
-    # the turn the calibrated gyroscope integrates over each segment, all at once: the
-    # segments' rows gathered (only they are corrected)
-    length = spans[:, 1] - spans[:, 0] + 1
-    start = np.cumsum(length) - length
-    rows = np.repeat(spans[:, 0] - start, length) + np.arange(int(length.sum()))
-    turns = segment_turns(
-        time[rows], sensor.correct(log.gyro[rows]), np.column_stack([start, start + length - 1])
-    )
-    angles = rotation_angle_deg(turns)
-    segments = [
-        {
-            "start": int(log.index[first]),
-            "stop": int(log.index[last]) + 1,
-            "seconds": float(time[last] - time[first]),
-            "angle_deg": float(angle),
-            "residual_deg": float(residual),
-        }
-        for (first, last), angle, residual in zip(
-            fit.segments, angles, fit.segment_residual_deg, strict=True
-        )
-    ]
-    how: dict[str, Any] = {
-        "method": fit.method,
-        "drift": fit.drift,
-        "drift_p_value": fit.drift_p_value,
-        "bias_wander": fit.bias_wander,
-        "pose_time": [float(t) for t in fit.pose_time],
-        "pose_bias": [[float(v) for v in row] for row in fit.pose_bias],
-        "observable": list(fit.observable),
-        "statistic": fit.statistic,
-        "dof": fit.dof,
-        "p_value": fit.p_value,
-        "widening": fit.widening,
-    }
-    if fit.temperature_record:
-        how["temperature"] = fit.temperature_record
-    return dataclasses.replace(
-        cal,
-        gyro=sensor,
-        covariance=covariance,
-        gyro_segments=tuple(segments),
-        options={**cal.options, "gyro": how},
-    )
 
 
 def _how_found(log: Log, poses: PoseSet) -> str:

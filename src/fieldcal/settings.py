@@ -16,8 +16,8 @@ Adding an option is one field here: a name (the library's keyword), a type and d
 ``meta(flag, help, ...)`` with its unit and ``valid`` values (a :class:`Range`, choices, or a
 parser of its text). The command line picks it up for every command that takes its stage, the
 manifest as a column; the stage's code reads it from its settings object. An option of the
-library alone (``false_alarm``, ``body_frame``, ``trim``) has no flag: no command-line option,
-no manifest column.
+library alone (``false_alarm``, ``body_frame``, ``cut_unsteady``) has no flag: no command-line
+option, no manifest column.
 
 The settings objects hold the values as the user gave them; each stage checks its own once,
 with a one-line error (:func:`fieldcal.api.calibrate_with` the fit's and the trust's,
@@ -30,12 +30,14 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import math
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias, TypeVar
 
 from numpy.typing import ArrayLike
 
+from .errors import NOT_A_SENSOR, InputError
 from .geometry.frames import ACCEL_SIGNS
 from .limits import LARGEST, SMALLEST
 from .reference import DIP_ALLOWANCE_DEG
@@ -43,14 +45,18 @@ from .reference import DIP_ALLOWANCE_DEG
 __all__ = [
     "BODY_FRAMES",
     "DEFAULT_METHOD",
+    "ESTIMATION_PATHS",
     "MAGNITUDE",
     "NON_NEGATIVE",
     "OPTIONS",
+    "POSES_ONLY",
     "POSE_CHOICES",
     "POSITIVE",
     "READ_OPTIONS",
+    "RENAMED_KEYWORDS",
     "STAGES",
     "TARGET_OPTIONS",
+    "WMM_UNITS",
     "DateSpec",
     "DetectSettings",
     "FitSettings",
@@ -64,9 +70,12 @@ __all__ = [
     "TrustSettings",
     "changed",
     "parse",
+    "parse_field_strength",
     "parse_noise",
     "parse_pose_noise",
+    "renamed",
     "settings_of",
+    "wmm_unit",
 ]
 
 #: The calibration method when none is named (a name in :data:`fieldcal.methods.METHODS`).
@@ -76,6 +85,11 @@ DEFAULT_METHOD = "mle"
 #: detection, windows, one pose per sample (a slow log without a gyroscope;
 #: ``fieldcal.logs.pose_finding.POSE_SOURCES``), or continuous motion
 #: (``fieldcal.pipeline.POSE_MODES``, :mod:`fieldcal.methods.continuous`).
+#: The estimation paths of a log (:mod:`fieldcal.methods`' registry): static poses, and
+#: continuous motion with the gyroscope.
+ESTIMATION_PATHS = ("poses", "continuous")
+#: ``Option.paths`` of an option that only the pose methods read.
+POSES_ONLY = ("poses",)
 POSE_CHOICES = ("auto", "still", "windows", "samples", "continuous")
 #: ``body_frame``: the sensor whose gain is made symmetric (Sec. 4.3).
 BODY_FRAMES = ("accel", "mag")
@@ -174,6 +188,12 @@ class Option:
     target : str
         The attribute of :class:`fieldcal.Targets` the option sets (``--target-tilt``:
         ``tilt_deg``); its default (``None``) is that class's default.
+    old_flag : str
+        A former spelling of ``flag`` still taken (a deprecation note says the new one); its
+        manifest column too.
+    paths : tuple of str
+        The estimation paths that read it (:data:`ESTIMATION_PATHS`): a value given to a path
+        that does not read it is noted as unused, never silently dropped.
     """
 
     flag: str
@@ -184,6 +204,8 @@ class Option:
     metavar: str | None = None
     show_default: bool = False
     target: str = ""
+    paths: tuple[str, ...] = ("poses", "continuous")
+    old_flag: str = ""
     name: str = ""
     stage: Stage = "fit"
     default: object = None
@@ -192,6 +214,11 @@ class Option:
     def column(self) -> str:
         """The option's column in a batch manifest (empty for the library's own options)."""
         return self.flag.split("/")[0].lstrip("-").replace("-", "_")
+
+    @property
+    def old_column(self) -> str:
+        """The manifest column of :attr:`old_flag` (empty for none)."""
+        return self.old_flag.lstrip("-").replace("-", "_")
 
     @property
     def on_command_line(self) -> bool:
@@ -217,7 +244,11 @@ def _per_sensor(text: str, one: Callable[[str], Any], example: str) -> Any:
         key, _, value = part.partition("=")
         key = key.strip().lower()
         if key not in ("accel", "mag"):
-            raise ValueError(f"{key!r} is not a sensor; name accel and/or mag, e.g. {example}")
+            raise InputError(
+                f"{key!r} is not a sensor; name accel and/or mag, e.g. {example}",
+                code=NOT_A_SENSOR,
+                subject=repr(key),
+            )
         out[key] = one(value.strip())
     return out
 
@@ -256,8 +287,20 @@ def parse_pose_noise(text: str) -> str | float | dict[str, str | float]:
     return parsed
 
 
-def _field_strength(text: str) -> float | str:
-    if text.strip().lower() in ("wmm", "wmm:ut", "wmm:nt"):
+#: ``field_strength`` keywords for the World Magnetic Model's intensity, and their unit.
+WMM_UNITS = {"wmm": "uT", "wmm:ut": "uT", "wmm:µt": "uT", "wmm:nt": "nT"}
+
+
+def wmm_unit(value: object) -> str | None:
+    """The unit a ``field_strength`` of ``wmm``, ``wmm:uT`` or ``wmm:nT`` asks for (``None``:
+    not one of them); the one parser of the keyword."""
+    return WMM_UNITS.get(value.strip().lower()) if isinstance(value, str) else None
+
+
+def parse_field_strength(text: str) -> float | str:
+    """``--field-strength``: a magnitude, or ``wmm`` (:data:`WMM_UNITS`) for the World Magnetic
+    Model's intensity at ``--location``; ``ValueError`` with the reason otherwise."""
+    if wmm_unit(text) is not None:
         return text.strip()
     if text.strip()[:1].isalpha():
         raise ValueError(
@@ -399,7 +442,11 @@ class DetectSettings:
     still_trim: float | None = field(
         default=None,
         metadata=meta(
-            "--trim", "Cut at each end of an interval (s or samples).", unit="s", valid=NON_NEGATIVE
+            "--still-trim",
+            "Cut at each end of an interval (s or samples).",
+            unit="s",
+            valid=NON_NEGATIVE,
+            old_flag="--trim",
         ),
     )
     still_threshold: float | None = field(
@@ -431,7 +478,13 @@ class FitSettings:
 
     method: str = field(
         default=DEFAULT_METHOD,
-        metadata=meta("--method", "Calibration method", valid=None, show_default=True),
+        metadata=meta(
+            "--method",
+            "Calibration method",
+            valid=None,
+            show_default=True,
+            paths=POSES_ONLY,
+        ),
     )
     gravity: float | None = field(
         default=None,
@@ -445,7 +498,7 @@ class FitSettings:
             "--field-strength",
             "|h| for calibrated mag units (e.g. 48.5), or wmm: the World Magnetic Model's "
             "intensity at --location in µT (wmm:nT for nT).",
-            valid=_field_strength,
+            valid=parse_field_strength,
             metavar="NUMBER|WMM",
         ),
     )
@@ -456,6 +509,7 @@ class FitSettings:
             "Noise std of one raw sample: one value, or accel=0.01,mag=0.2 (default: estimated).",
             unit="raw",
             valid=parse_noise,
+            paths=POSES_ONLY,
         ),
     )
     pose_noise: PoseNoiseSpec = field(
@@ -467,6 +521,7 @@ class FitSettings:
             unit="raw",
             valid=parse_pose_noise,
             show_default=True,
+            paths=POSES_ONLY,
         ),
     )
     robust: bool = field(
@@ -477,13 +532,15 @@ class FitSettings:
             "trimming of bumps inside a pose.",
             valid="flag",
             inverted=True,
+            paths=POSES_ONLY,
         ),
     )
-    trim: bool | None = field(
+    cut_unsteady: bool | None = field(
         default=None,
         metadata=library_only(
             "Cut samples that are not still inside each pose before Eq. 5/7 (default: as "
-            "robust; --no-robust turns both off)."
+            "robust; --no-robust turns both off).",
+            paths=POSES_ONLY,
         ),
     )
     body_frame: str = field(
@@ -491,6 +548,7 @@ class FitSettings:
         metadata=library_only(
             "The sensor whose gain is made symmetric, fixing the common body frame (Sec. 4.3).",
             valid=BODY_FRAMES,
+            paths=POSES_ONLY,
         ),
     )
     mag_axes: str | None = field(
@@ -562,7 +620,9 @@ class TrustSettings:
     false_alarm: float = field(
         default=0.01,
         metadata=library_only(
-            "Family-wise false-alarm rate of the pose tests per calibration.", valid=_PROBABILITY
+            "Family-wise false-alarm rate of the pose tests per calibration.",
+            valid=_PROBABILITY,
+            paths=POSES_ONLY,
         ),
     )
     target_tilt: float | None = field(
@@ -646,6 +706,31 @@ def changed(settings: object) -> dict[str, object]:
         plain = isinstance(value, (str, bool, int, float, type(None)))
         if value is not f.default and not (plain and value == f.default):
             out[f.name] = value
+    return out
+
+
+#: Library keywords renamed, old name to new: one word, one meaning (``trim`` was both the
+#: still detector's cut at each end of an interval, ``still_trim``, and the fit's cut of
+#: unsteady samples inside a pose, now ``cut_unsteady``). The old name is taken for one
+#: release, with a ``DeprecationWarning``.
+RENAMED_KEYWORDS = {"trim": "cut_unsteady"}
+
+
+def renamed(keywords: Mapping[str, object], stacklevel: int = 3) -> dict[str, object]:
+    """``keywords`` with each old name of :data:`RENAMED_KEYWORDS` under its new one (a
+    ``DeprecationWarning`` for each; both given: an ``InputError``)."""
+    out = dict(keywords)
+    for old, new in RENAMED_KEYWORDS.items():
+        if old not in out:
+            continue
+        if new in out:
+            raise InputError(f"{old}= and {new}= were both given; {old}= is the old name of {new}=")
+        warnings.warn(
+            f"{old}= is now {new}= (the old name is taken until the next release)",
+            DeprecationWarning,
+            stacklevel=stacklevel,
+        )
+        out[new] = out.pop(old)
     return out
 
 

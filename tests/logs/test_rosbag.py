@@ -624,9 +624,10 @@ def test_calibrate_and_report_a_bag(tmp_path, kind):
             from_bag.sensor(sensor).gain, from_csv.sensor(sensor).gain, rtol=1e-6
         )
     # the same verdict as the CSV's; Table 1's noise predicts errors beyond the default
-    # targets (accuracy), nothing else
+    # targets (accuracy), and the simulated gyroscope's axes are some 5° from the
+    # accelerometer's (a note), nothing else
     assert from_bag.verdict.codes == from_csv.verdict.codes
-    assert set(from_bag.verdict.codes) <= {"accuracy"}, from_bag.verdict.codes
+    assert set(from_bag.verdict.codes) <= {"accuracy", "gyro_misalignment"}, from_bag.verdict.codes
     # the topics named explicitly give the same; a topic on a CSV is refused in one line
     named = runner.invoke(
         cli,

@@ -10,11 +10,15 @@ from fieldcal.errors import InputError
 from fieldcal.methods.continuous import fit_continuous
 from fieldcal.methods.continuous.observability import motion_advice
 from fieldcal.simulation.handwave import simulate_handwave
+from fieldcal.trust.continuous_motion import trust_continuous
 
 
 def _fit(log, **options):
+    """The estimator, judged by the registered rules (it builds no verdict itself)."""
     cols = [np.column_stack([log.columns[p + a] for a in "xyz"]) for p in "amg"]
-    return fit_continuous(log.columns["t"], *cols, **options)
+    cal = fit_continuous(log.columns["t"], *cols, **options)
+    assert cal.verdict is None and cal.findings.motion is not None
+    return trust_continuous(cal)
 
 
 def test_turns_about_x_and_y_only_name_z():

@@ -17,6 +17,7 @@ from fieldcal.methods.continuous.model import Data, State, accel_block, mag_bloc
 from fieldcal.methods.continuous.preintegration import thermal_factors
 from fieldcal.methods.continuous.uncertainty import NAMES
 from fieldcal.simulation.handwave import simulate_handwave
+from fieldcal.trust.continuous_motion import trust_continuous
 
 #: Linear bias drift per kelvin: accelerometer (m/s²), magnetometer (µT), gyroscope (rad/s).
 DRIFT = {
@@ -57,7 +58,7 @@ def test_linear_drift_recovered_within_error_bars():
         bias = getattr(cal, sensor)
         assert np.all(np.abs(bias.bias - getattr(log.truth, sensor).bias) < 4.0 * bias.bias_std)
     assert "accel.temp[1,0]" in cal.covariance.names
-    assert cal.verdict is not None and "temperature_span" not in cal.verdict.codes
+    assert "temperature_span" not in trust_continuous(cal).verdict.codes
 
 
 def test_no_drift_selects_no_terms():
@@ -78,7 +79,8 @@ def test_small_span_refused_with_one_line():
     assert "at least 5 K" in cal.options["temperature"]["refused"]
     assert all(getattr(cal, s).temperature.refused for s in ("accel", "mag", "gyro"))
     assert all(getattr(cal, s).temperature.order == 0 for s in ("accel", "mag", "gyro"))
-    assert "temperature_span" in cal.verdict.codes
+    assert cal.findings.temperature_span is not None
+    assert "temperature_span" in trust_continuous(cal).verdict.codes
 
 
 def test_without_temperature_no_terms():

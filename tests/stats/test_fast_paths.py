@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.calibration import _sensor_block
+from fieldcal.covariance import _sensor_block
 from fieldcal.likelihood import pose_model as mle_model
 from fieldcal.logs import Table, load_log, poses_from_log, stillness
 from fieldcal.logs import pose_finding as log_poses

@@ -83,6 +83,22 @@ def test_every_rule_has_a_fixed_level_a_row_in_the_docs_and_a_check():
     assert len(rules.CHECKS) >= 10 and all(callable(c) for c in rules.CHECKS)
 
 
+def test_every_code_has_exactly_one_owning_check():
+    """Each code of RULES is fired by one check (``OWNER``), and that check is run by judge (or
+    is the capture's ``with_dropped_lines``)."""
+    assert set(rules.OWNER) == set(rules.RULES)
+    run = {c.__name__ for c in rules.CHECKS} | {"with_dropped_lines"}
+    assert set(rules.OWNER.values()) <= run
+    assert {c.__name__ for c in rules.LATE_CHECKS} <= {c.__name__ for c in rules.CHECKS}
+
+
+def test_a_check_cannot_own_a_code_twice_or_an_unknown_code():
+    with pytest.raises(KeyError, match="owned by"):
+        rules._owns("accuracy")(lambda case: iter(()))
+    with pytest.raises(KeyError, match="not in RULES"):
+        rules._owns("no_such_code")(lambda case: iter(()))
+
+
 def test_judge_is_a_loop_over_the_checks():
     assert len(inspect.getsource(rules.judge).splitlines()) < 40
     assert all(len(inspect.getsource(c).splitlines()) < 60 for c in rules.CHECKS)

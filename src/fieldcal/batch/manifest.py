@@ -133,9 +133,11 @@ def _cell_parser(option: Option) -> Callable[[str], Any]:
 #: ``--no-robust`` does; ``target_tilt``, ``target_heading``, ``target_norm`` set the
 #: verdict's accuracy targets for that log.
 OPTION_COLUMNS: dict[str, tuple[str, Callable[[str], Any]]] = {
-    option.column: (option.name, _cell_parser(option))
+    column: (option.name, _cell_parser(option))
     for option in OPTIONS.values()
     if option.on_command_line
+    for column in (option.column, option.old_column)  # an old spelling still read
+    if column
 }
 
 
@@ -157,7 +159,7 @@ def _row_options(cells: Mapping[str, str], where: str) -> dict[str, Any]:
             ) from None
         if keyword == "robust":
             if not value:
-                options.update(robust=False, trim=False)
+                options.update(robust=False, cut_unsteady=False)
             continue
         options[keyword] = value
     return options

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..errors import InputError
+from ..errors import NOT_A_SENSOR, InputError
 from ..limits import LARGEST, SMALLEST
 from ..methods import METHODS
 from ..settings import MAGNITUDE as _MAGNITUDE
@@ -28,6 +28,7 @@ from ..settings import (
     Option,
     Range,
     Stage,
+    parse_field_strength,
     parse_noise,
     parse_pose_noise,
 )
@@ -110,17 +111,13 @@ class FieldStrength(Number):
     def convert(  # type: ignore[override]  # a number or the model's keyword
         self, value: Any, param: click.Parameter | None, ctx: click.Context | None
     ) -> float | str:
-        text = str(value).strip()
-        if text.lower() in ("wmm", "wmm:ut", "wmm:nt"):
-            return text
-        if not isinstance(value, float) and text[:1].isalpha():
-            self.fail(
-                f"{value!r} is neither a number nor wmm (wmm:uT, wmm:nT: the World Magnetic "
-                "Model's intensity at --location)",
-                param,
-                ctx,
-            )
-        return super().convert(value, param, ctx)
+        if isinstance(value, float):
+            return super().convert(value, param, ctx)
+        try:
+            parsed = parse_field_strength(str(value))
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+        return parsed if isinstance(parsed, str) else super().convert(value, param, ctx)
 
 
 def _click_type(option: Option) -> click.ParamType[Any] | None:
@@ -163,7 +160,16 @@ def option_for(option: Option, **override: Any) -> Callable[[Command], Command]:
         kwargs["metavar"] = option.metavar
     kwargs.update(override)
     decorator: Callable[[Command], Command] = click.option(option.flag, **kwargs)
-    return decorator
+    if not option.old_flag:
+        return decorator
+    # the old spelling, taken for one release (keywords() notes the new one)
+    old = {k: v for k, v in kwargs.items() if k not in ("help", "show_default", "default")}
+    hidden = click.option(option.old_flag, f"old_{option.column}", hidden=True, **old)
+
+    def both(f: Command) -> Command:
+        return decorator(hidden(f))
+
+    return both
 
 
 def _options(names: Iterable[str]) -> Callable[[Command], Command]:
@@ -216,11 +222,10 @@ def parse_pose_noise_option(spec: str) -> str | float | dict[str, str | float]:
     try:
         return parse_pose_noise(spec)
     except ValueError as exc:
-        if "is not a sensor" in str(exc):
-            key = str(exc).split(" is not a sensor")[0]
+        if getattr(exc, "code", None) == NOT_A_SENSOR:
             raise InputError(
-                f"--pose-noise {spec!r}: {key} is not a sensor; name accel and/or mag, e.g. "
-                "accel=0.01,mag=0.2"
+                f"--pose-noise {spec!r}: {getattr(exc, 'subject', '')} is not a sensor; name "
+                "accel and/or mag, e.g. accel=0.01,mag=0.2"
             ) from None
         raise InputError(
             f"--pose-noise {spec!r} is not understood; give auto (estimate it), none (zero), a "
@@ -237,6 +242,14 @@ def keywords(given: Given, stages: Iterable[Stage]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name, option in OPTIONS.items():
         value = given.get(option.column)
+        old = given.get(f"old_{option.column}") if option.old_flag else None
+        if old is not None and option.stage in wanted:
+            click.echo(
+                f"note: {option.old_flag} is now {option.flag} (the old spelling is taken "
+                "until the next release)",
+                err=True,
+            )
+            value = old if value is None else value
         if option.stage not in wanted or value is None:
             continue
         if option.valid == "flag" and value is False:

@@ -39,7 +39,7 @@ from typing import Any, TypedDict
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
+from ..errors import NO_STILL, InputError, MovingRestsWarning
 from .log import Log
 from .stillness import Segment, StillResult, _column_sums, detect_still, scale_of
 
@@ -77,9 +77,6 @@ RATE_TOLERANCE = 0.05
 REST_DRIFT = MOTION_LIMIT / 2
 #: Fewest samples in a window (two per half for the change of the mean).
 _FEWEST = 4
-#: The start of the error when still detection finds no rest (the pipeline adds which other
-#: settings find poses, :mod:`fieldcal.logs.pose_hints`).
-NO_STILL = "no still interval of at least"
 
 
 class PoseEntry(TypedDict, total=False):
@@ -645,7 +642,7 @@ def poses_from_log(
         return _by_column(log, hz)
     w = _samples(window, "window", (0.5, 25), hz, log.n)
     min_samples = _samples(min_still, "min-still", (1.0, 50), hz, log.n)
-    cut = None if trim is None else _samples(trim, "trim", (0.0, 0), hz, log.n, zero=True)
+    cut = None if trim is None else _samples(trim, "still-trim", (0.0, 0), hz, log.n, zero=True)
     detection = detect_still(
         ref,
         log.gyro,
@@ -660,14 +657,16 @@ def poses_from_log(
         unit = f"{min_samples / hz:g} s" if hz else f"{min_samples} samples"
         if _turns_slowly(log, hz, None):
             raise InputError(
-                f"{log.path}: {NO_STILL} {unit} found: the log turns slowly "
-                "without rests; use --poses windows"
+                f"{log.path}: no still interval of at least {unit} found: the log turns slowly "
+                "without rests; use --poses windows",
+                code=NO_STILL,
             )
         raise InputError(
-            f"{log.path}: {NO_STILL} {unit} found (threshold "
+            f"{log.path}: no still interval of at least {unit} found (threshold "
             f"{detection.threshold_std:.3g} per-axis std); try --still-threshold "
             f"{3 * detection.threshold_std:.3g} or a shorter --min-still, or label poses with "
-            "--pose-col"
+            "--pose-col",
+            code=NO_STILL,
         )
     sensor = "accel" if log.accel is not None else "mag"
     drift = _still_drift(ref, sensor, detection.segments)
@@ -683,7 +682,7 @@ def poses_from_log(
             f"{what} across an interval (median; rests stay under {REST_DRIFT:.1%}), so the "
             f"log seems to turn without rests and its poses are means of moving readings; "
             f"{advice}",
-            UserWarning,
+            MovingRestsWarning,
             stacklevel=2,
         )
     entries: list[PoseEntry] = []

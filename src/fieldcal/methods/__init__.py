@@ -1,4 +1,13 @@
-"""Calibration methods: one registry that validates and dispatches, one module per method.
+"""Estimators: one registry that validates and dispatches, one module per estimator.
+
+Three kinds of estimator share it (:attr:`Method.takes`): the pose methods (``mle``, ``greedy``,
+``ellipsoid``: pose statistics in, :data:`METHODS`), the continuous-motion estimator
+(``continuous``: a log's time, field sensors and gyroscope) and the gyroscope stage (``gyro``:
+the motion between a pose calibration's poses). Each returns a
+:class:`~fieldcal.calibration.Calibration` with its typed findings
+(:attr:`~fieldcal.calibration.Calibration.findings`); the verdict's rules
+(:mod:`fieldcal.trust.verdict`) judge them, the same for all. :data:`ESTIMATORS` holds every
+one; :func:`estimator` finds one by name, whatever its kind.
 
 A method is a function
 ``fit(stats, *, raw_accel, raw_mag, body_frame, progress, <options>) -> Calibration`` from pose
@@ -20,14 +29,19 @@ import importlib
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Literal
 
+from ..settings import OPTIONS
 from ..stats.pose_stats import brief
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
 
-__all__ = ["METHODS", "Method", "get"]
+__all__ = ["ESTIMATORS", "METHODS", "Method", "Takes", "estimator", "get"]
+
+#: What an estimator takes: pose statistics, a log's continuous motion (time, accelerometer,
+#: magnetometer, gyroscope), or a pose calibration and the motion between its poses.
+Takes = Literal["poses", "motion", "poses and motion"]
 
 #: Parameters of every ``fit`` that are the shared path's, not user options.
 PROTOCOL = ("stats", "raw_accel", "raw_mag", "body_frame", "progress")
@@ -63,6 +77,13 @@ class Method:
     temperature : bool
         Whether ``fit`` estimates the temperature terms ``stats.temperature`` asks for (each
         sensor's bias polynomial in ``T − T_ref``, :mod:`fieldcal.likelihood.temperature`).
+    takes : {"poses", "motion", "poses and motion"}
+        What it takes (:data:`Takes`).
+    entry : str
+        The name of its function in ``module`` (``fit`` for the pose methods).
+    path : str
+        The estimation path whose options it reads (``Option.paths`` in
+        :mod:`fieldcal.settings`: ``"poses"`` or ``"continuous"``).
     """
 
     name: str
@@ -75,11 +96,24 @@ class Method:
     pose_weights: bool = False
     raw_samples: bool = True
     temperature: bool = False
+    takes: Takes = "poses"
+    entry: str = "fit"
+    path: str = "poses"
 
     def load(self) -> Callable[..., Calibration]:
-        """The method's ``fit`` function (imports its module)."""
-        fit: Callable[..., Calibration] = importlib.import_module(self.module).fit
+        """The estimator's function (imports its module)."""
+        fit: Callable[..., Calibration] = getattr(importlib.import_module(self.module), self.entry)
         return fit
+
+    def fit(self, *args: Any, **kwargs: Any) -> Calibration:
+        """Call the estimator (``estimator("continuous").fit(time, accel, mag, gyro)``): its
+        function's parameters, documented there."""
+        return self.load()(*args, **kwargs)
+
+    def settings(self) -> tuple[str, ...]:
+        """The options of :mod:`fieldcal.settings` it reads (their ``paths`` name its path),
+        by library keyword."""
+        return tuple(name for name, option in OPTIONS.items() if self.path in option.paths)
 
     def options(self) -> dict[str, object]:
         """The method's options and their defaults, from ``fit``'s signature."""
@@ -106,7 +140,7 @@ class Method:
         return self.min_poses
 
 
-METHODS: dict[str, Method] = {
+ESTIMATORS: dict[str, Method] = {
     m.name: m
     for m in (
         Method(
@@ -136,12 +170,51 @@ METHODS: dict[str, Method] = {
             min_poses_single=9,
             continuous=True,
         ),
+        Method(
+            "continuous",
+            "fieldcal.methods.continuous",
+            "every sample of a log in continuous motion, the gyroscope tying the orientations "
+            "together (--poses continuous)",
+            min_poses=0,
+            min_poses_single=None,
+            temperature=True,
+            takes="motion",
+            entry="fit_continuous",
+            path="continuous",
+        ),
+        Method(
+            "gyro",
+            "fieldcal.gyro.stage",
+            "the gyroscope's gain and bias from the motion between a pose calibration's poses",
+            min_poses=2,
+            min_poses_single=2,
+            takes="poses and motion",
+            entry="gyro_stage",
+        ),
     )
 }
+#: The pose methods (``method=``, ``--method``): the estimators that take pose statistics.
+METHODS: dict[str, Method] = {n: m for n, m in ESTIMATORS.items() if m.takes == "poses"}
 
 
 def get(name: object) -> Method:
-    """The registered method called ``name``; a one-line error listing the names otherwise."""
+    """The registered pose method called ``name``; a one-line error listing the names
+    otherwise."""
     if not isinstance(name, str) or name not in METHODS:
         raise ValueError(f"unknown method {brief(name)}; choose one of {', '.join(METHODS)}")
     return METHODS[name]
+
+
+def estimator(name: object) -> Method:
+    """The registered estimator called ``name``, of any kind (:data:`ESTIMATORS`); a one-line
+    error listing the names otherwise.
+
+    Examples
+    --------
+    >>> import fieldcal
+    >>> fieldcal.estimator("continuous").takes
+    'motion'
+    """
+    if not isinstance(name, str) or name not in ESTIMATORS:
+        raise ValueError(f"unknown estimator {brief(name)}; choose one of {', '.join(ESTIMATORS)}")
+    return ESTIMATORS[name]

@@ -14,7 +14,8 @@ down-weighted for the body's acceleration). What the pose path adds after a fit
 - the verdict from :data:`fieldcal.trust.verdict.CHECKS` (:func:`~fieldcal.trust.verdict.judge`
   with no pose statistics: the rules on convergence, accuracy against the targets, plausible
   gains, coverage — of the trajectory's gravity directions —, the dip and the reference
-  apply; the pose-level ones do not), with the estimator's own reasons kept in place of them.
+  apply; the pose-level ones do not), and the rules on the estimator's typed findings
+  (:class:`fieldcal.findings.MotionFindings`: ``continuous_undetermined`` ...).
 """
 
 from __future__ import annotations
@@ -26,10 +27,7 @@ from ..reference import FieldReference
 from .fitting import conclude
 from .targets import Targets
 
-__all__ = ["METHOD_OWN", "trust_continuous"]
-
-#: The estimator's reasons the shared rules replace (the generic ``not_converged`` says it).
-METHOD_OWN = ("continuous_not_converged",)
+__all__ = ["trust_continuous"]
 
 
 def trust_continuous(
@@ -68,13 +66,6 @@ def trust_continuous(
         ``mag_handedness`` (``"stated"`` or ``"reference"``).
     """
     given = {s: (1.0, m) for s, m in (magnitudes or {}).items() if m}  # gains in those units
-    own = cal.verdict.reasons if cal.verdict is not None else ()
     return conclude(
-        cal,
-        bool(mag_mirrored),
-        reference,
-        dip_allowance_deg,
-        targets=targets,
-        magnitudes=given,
-        given=[r for r in own if r.code not in METHOD_OWN],
+        cal, bool(mag_mirrored), reference, dip_allowance_deg, targets=targets, magnitudes=given
     )

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration, ParameterCovariance
+from ..findings import PoseCorrelation as Correlated
 
 __all__ = ["WINDOW_FACTOR", "PoseCorrelation", "measure_correlation", "widen_for_correlation"]
 
@@ -158,9 +159,17 @@ def widen_for_correlation(cal: Calibration) -> Calibration:
     if diagnostics is not None:
         diagnostics = dataclasses.replace(diagnostics, status=STATUS)
     record = {**worst.to_dict(), "sensors": {s: c.to_dict() for s, c in found.items()}}
+    finding = Correlated(
+        tau=float(record["tau"]),
+        effective_poses=float(record["effective_poses"]),
+        poses=int(record["poses"]),
+        widening=float(record["widening"]),
+    )
     return dataclasses.replace(
         cal,
         covariance=covariance,
         diagnostics=diagnostics,
+        # the record stays in options: the file's documented key (docs/cli.md)
         options={**cal.options, "pose_correlation": record},
+        findings=dataclasses.replace(cal.findings, pose_correlation=finding),
     )

@@ -28,7 +28,6 @@ from scipy.special import chdtrc
 from ..calibration import (
     Calibration,
     ParameterCovariance,
-    Reason,
     RejectedPose,
     SensorCalibration,
 )
@@ -51,7 +50,7 @@ from .pose_noise import (
     widening,
 )
 from .targets import Targets
-from .verdict import Findings, ReferenceCheck, judge
+from .verdict import PoseFindings, ReferenceCheck, judge
 
 __all__ = ["Handedness", "decide", "fit_trusted", "reference_mirrored"]
 
@@ -268,15 +267,14 @@ def conclude(
     dip_allowance_deg: float,
     *,
     current: PoseStats | None = None,
-    found: Findings | None = None,
+    found: PoseFindings | None = None,
     targets: Targets | None = None,
     magnitudes: Mapping[str, tuple[float, float]] | None = None,
-    given: Sequence[Reason] = (),
 ) -> Calibration:
     """The trust path's last steps, for the pose fits and the continuous fit alike: the
     magnetometer's handedness (a choice of gauge, so made before the verdict reads the dip;
     :func:`.handedness.decide`), the predicted accuracy and the verdict (:func:`.verdict.judge`
-    with ``current``, ``found``, ``targets``, ``magnitudes`` and ``given``), attached with the
+    with ``current``, ``found``, ``targets`` and ``magnitudes``), attached with the
     reference and the handedness options."""
     hand = decide(result, mag_mirrored, reference, dip_allowance_deg)
     check = None
@@ -292,7 +290,6 @@ def conclude(
         check,
         targets=targets,
         magnitudes=magnitudes,
-        given=given,
     )
     return dataclasses.replace(
         result,
@@ -316,7 +313,7 @@ def _finish(
     sources: dict[str, str],
     n_total: int,
     first_options: Mapping[str, object],
-) -> tuple[Calibration, Findings]:
+) -> tuple[Calibration, PoseFindings]:
     ev = ev_ml if cal is ml else evaluate(cal, stats, runner.body_frame)
     factor = widening(ev_ml, noise, stats)
     unc = ev.uncertainty
@@ -371,7 +368,7 @@ def _finish(
         accel=sensors.get("accel", cal.accel),
         mag=sensors.get("mag", cal.mag),
     )
-    found = Findings(
+    found = PoseFindings(
         n_total=n_total,
         rejected=[(r.index, r.sensor) for r in rejected],
         unflagged_left=left,

@@ -15,6 +15,7 @@ in ``docs/trust.md`` and a test.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -23,26 +24,32 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, Reason, Verdict
+from ..findings import TemperatureSpan
 from ..likelihood.temperature import MIN_SPAN_K
 from ..reference import FieldReference
 from ..stats.pose_stats import PoseStats
+from ..verdicts import Level, VerdictLevel
 from .targets import DEFAULT_TARGETS, Targets
 
 __all__ = [
     "CHECKS",
+    "LATE_CHECKS",
+    "OWNER",
     "RULES",
     "Case",
     "Findings",
+    "PoseFindings",
     "ReferenceCheck",
     "judge",
     "reason",
     "with_dropped_lines",
+    "with_late_checks",
 ]
 
 Array = NDArray[np.float64]
 
 #: code -> (level, message template). Each message names the cause and the fix.
-RULES: dict[str, tuple[str, str]] = {
+RULES: dict[str, tuple[Level, str]] = {
     "not_converged": (
         "fail",
         "the optimiser did not converge ({detail}); record more orientations or raise the "
@@ -175,6 +182,45 @@ RULES: dict[str, tuple[str, str]] = {
         "the fit is implausible under the stated noise (J = {cost:.4g} for χ²({dof}), p = "
         "{p:.2g}); let fieldcal estimate the pose-level noise (pose noise auto)",
     ),
+    "gyro_gain": (
+        "warn",
+        "the gyroscope's gain is implausible for a MEMS gyroscope ({what} {value}, limit "
+        "{limit}); check the gyroscope's unit (rad/s: deg/s reads 57.3 times too much, "
+        "--gyro-unit), its columns and axes (--gyro-cols), and that the log's time is in seconds",
+    ),
+    "gyro_misalignment": (
+        "note",
+        "the gyroscope's axes are {angle:.1f}° from the accelerometer's (more than {limit:g}°): "
+        "on one die they agree within 1–2°; between separate chips this is their mounting, "
+        "otherwise check the gyroscope's axis columns (--gyro-cols)",
+    ),
+    "gyro_segments": (
+        "note",
+        "{left_out} of {total} motion segments were left out of the gyroscope's fit: their "
+        "integrated turn disagrees with the poses' (a bump, a gap in the log, or time stamps "
+        "that are not the samples' own)",
+    ),
+    "gyro_misfit": (
+        "note",
+        "the gyroscope's motion segments disagree with its model beyond their noise (p = "
+        "{p:.2g}); its error bars are widened {widening:.3g}x: check the time column and that "
+        "the device was turned, not shaken, between the poses",
+    ),
+    "continuous_undetermined": (
+        "fail",
+        "{advice}",
+    ),
+    "continuous_unsettled": (
+        "fail",
+        "the fit left {which} undetermined although the log turned through them: the fit did "
+        "not settle (check that the time column is in seconds, the gyroscope in rad/s, and "
+        "that the log is not decimated below the motion's bandwidth)",
+    ),
+    "continuous_disturbed": (
+        "note",
+        "{disturbed:.3g} s of {duration:.3g} s were down-weighted for body acceleration; turn "
+        "the device through the orientations with smooth, slower turns rather than shaking it",
+    ),
     "dropped_lines": (
         "warn",
         "{dropped} of {total} data lines ({share:.1%}) were dropped as unreadable ({which}); "
@@ -217,14 +263,19 @@ SENSOR_NAME = {"accel": "accelerometer", "mag": "magnetometer"}
 
 
 @dataclass
-class Findings:
-    """What the trust path measured, for the rules."""
+class PoseFindings:
+    """What the pose path's trust stage measured (rejected poses, the condition of the reduced
+    system, a method's excess cost over the optimum), for the rules."""
 
     n_total: int
     rejected: list[tuple[int, str]]
     unflagged_left: int
     condition: float
     excess: dict[str, object] | None
+
+
+#: The old name of :class:`PoseFindings` (fieldcal 0.2; kept for one release).
+Findings = PoseFindings
 
 
 @dataclass(frozen=True)
@@ -253,7 +304,7 @@ class Case:
 
     cal: Calibration
     stats: PoseStats | None
-    found: Findings | None
+    found: PoseFindings | None
     accuracy: Accuracy | None = None
     reference: ReferenceCheck | None = None
     targets: Targets = DEFAULT_TARGETS
@@ -295,12 +346,34 @@ def _axis(directions: Array) -> str:
     return "xyz"[int(np.argmax(np.abs(V[:, 0])))]
 
 
+#: Each code of :data:`RULES` and the one check that fires it (filled in by :func:`_owns`; a test
+#: holds that every code has exactly one owner and that no path emits an unregistered code).
+OWNER: dict[str, str] = {}
+
+
+def _owns(*codes: str) -> Callable[[Check], Check]:
+    """Declare the codes a check fires: each code is owned by exactly one check."""
+
+    def register(check: Check) -> Check:
+        for code in codes:
+            if code not in RULES:
+                raise KeyError(f"{check.__name__} owns {code!r}, which is not in RULES")
+            if code in OWNER:
+                raise KeyError(f"{code!r} is owned by {OWNER[code]} and {check.__name__}")
+            OWNER[code] = check.__name__
+        return check
+
+    return register
+
+
 # ----------------------------------------------------------------------------- the checks
+@_owns("not_converged")
 def _converged(case: Case) -> Iterator[Fired]:
     if not case.cal.converged:
         yield "not_converged", {"detail": case.cal.message or f"{case.cal.iterations} iterations"}
 
 
+@_owns("degenerate")
 def _degenerate(case: Case) -> Iterator[Fired]:
     if case.stats is None or case.found is None:  # continuous: its identifiability check
         return
@@ -309,6 +382,7 @@ def _degenerate(case: Case) -> Iterator[Fired]:
         yield "degenerate", {"condition": case.found.condition, "axis": axis}
 
 
+@_owns("too_many_rejected", "unidentifiable")
 def _rejections(case: Case) -> Iterator[Fired]:
     found = case.found
     if found is None:  # continuous: stretches are down-weighted, not dropped
@@ -319,6 +393,7 @@ def _rejections(case: Case) -> Iterator[Fired]:
         yield "unidentifiable", {"flagged": found.unflagged_left}
 
 
+@_owns("same_sensor")
 def _same_sensor(case: Case) -> Iterator[Fired]:
     stats = case.stats
     if stats is None or not (
@@ -341,6 +416,7 @@ def _same_sensor(case: Case) -> Iterator[Fired]:
         yield "same_sensor", {"residual": residual}
 
 
+@_owns("not_rigid", "pose_noise")
 def _pose_noise(case: Case) -> Iterator[Fired]:
     if case.stats is None:  # no poses: no pose-level noise
         return
@@ -359,6 +435,7 @@ def _pose_noise(case: Case) -> Iterator[Fired]:
             yield "pose_noise", {"sensor": s, "ratio": sc.pose_noise_std / sample}
 
 
+@_owns("trimmed")
 def _trimmed(case: Case) -> Iterator[Fired]:
     if case.stats is None:  # no samples are cut from a continuous log
         return
@@ -381,6 +458,7 @@ def _trimmed(case: Case) -> Iterator[Fired]:
                 )
 
 
+@_owns("unusable", "accuracy")
 def _accuracy(case: Case) -> Iterator[Fired]:
     """``unusable`` for the first prediction beyond :data:`UNUSABLE_FACTOR` times its target
     (NaN counts), otherwise ``accuracy`` for each prediction beyond its target."""
@@ -411,6 +489,7 @@ def _accuracy(case: Case) -> Iterator[Fired]:
         yield "accuracy", numbers
 
 
+@_owns("untested")
 def _untested(case: Case) -> Iterator[Fired]:
     diag = case.cal.diagnostics
     if case.stats is None or diag is None or diag.dof >= MIN_TEST_DOF:
@@ -451,6 +530,7 @@ _EYE.setflags(write=False)
 _RANK_TOL = 3 * float(np.finfo(float).eps)
 
 
+@_owns("implausible_gain")
 def _gains(case: Case) -> Iterator[Fired]:
     sensors = case.sensors
     shapes = _shapes(np.array([case.cal.sensor(s).gain for s in sensors]))
@@ -491,6 +571,7 @@ def _gains(case: Case) -> Iterator[Fired]:
             )
 
 
+@_owns("rejected", "coverage")
 def _coverage(case: Case) -> Iterator[Fired]:
     if case.found is not None and case.found.rejected:
         rejected = case.found.rejected
@@ -510,6 +591,13 @@ def _coverage(case: Case) -> Iterator[Fired]:
 REFERENCE_SIGMAS = 3.0
 
 
+@_owns(
+    "negative_dip",
+    "reference_undecided",
+    "reference_mirrored",
+    "reference_unmirrored",
+    "reference_dip",
+)
 def _dip(case: Case) -> Iterator[Fired]:
     dip = case.cal.dip_deg
     if dip is None:
@@ -544,6 +632,7 @@ def _dip(case: Case) -> Iterator[Fired]:
         )
 
 
+@_owns("not_ml", "implausible")
 def _likelihood(case: Case) -> Iterator[Fired]:
     if case.stats is None or case.found is None:  # continuous: correlated, not a χ² test
         return
@@ -556,34 +645,119 @@ def _likelihood(case: Case) -> Iterator[Fired]:
         and diag.dof > 0
         and diag.p_value < 1e-4
         and not case.found.rejected
-        and "pose_correlation" not in case.cal.options  # then the χ² is no test
+        and case.cal.findings.pose_correlation is None  # then the χ² is no test
     ):
         yield "implausible", {"cost": diag.statistic, "dof": diag.dof, "p": diag.p_value}
 
 
+@_owns("correlated_poses")
 def _correlated(case: Case) -> Iterator[Fired]:
     """Poses cut from one continuous motion (:mod:`.correlation` measured and applied τ)."""
-    found = case.cal.options.get("pose_correlation")
-    if isinstance(found, Mapping):
+    found = case.cal.findings.pose_correlation
+    if found is not None:
         yield (
             "correlated_poses",
             {
-                "tau": found["tau"],
-                "effective": found["effective_poses"],
-                "poses": found["poses"],
-                "widening": found["widening"],
+                "tau": found.tau,
+                "effective": found.effective_poses,
+                "poses": found.poses,
+                "widening": found.widening,
             },
         )
 
 
+@_owns("temperature_span")
 def _temperature_span(case: Case) -> Iterator[Fired]:
     """A temperature column whose span was too small for temperature terms
     (:mod:`fieldcal.likelihood.temperature`): the calibration holds at the mean temperature."""
     t = None if case.stats is None else case.stats.temperature
+    span = case.cal.findings.temperature_span  # the continuous estimator's
     if t is not None and t.refused:
         low, high = (float(x) for x in t.span)
-        values = {"span": high - low, "low": low, "high": high, "mean": t.reference}
-        yield "temperature_span", {**values, "need": MIN_SPAN_K}
+        span = TemperatureSpan(low, high, float(t.reference))
+    if span is not None:
+        values = {"span": span.high - span.low, "low": span.low, "high": span.high}
+        yield "temperature_span", {**values, "mean": span.mean, "need": MIN_SPAN_K}
+
+
+#: A gyroscope's plausible gain: scale within this share of 1 (MEMS datasheets: ±3 %; deg/s
+#: for rad/s is 57x), axis scales and cross-axis terms within it. Its axes' angle to the
+#: accelerometer's: beyond :data:`GYRO_MISALIGNMENT_DEG` a note (one die: datasheets ±1–2°;
+#: separate chips may be mounted further apart), beyond :data:`GYRO_AXES_DEG` a wrong axis
+#: (a swapped or reversed pair turns the triad by 90° or 180°).
+GYRO_SCALE = 0.1
+GYRO_MISALIGNMENT_DEG = 3.0
+GYRO_AXES_DEG = 15.0
+
+
+@_owns("gyro_gain", "gyro_misalignment")
+def _gyro_gain(case: Case) -> Iterator[Fired]:
+    """The gyroscope's gain (raw rad/s per rad/s, in the accelerometer's body frame): its scale,
+    a reversed axis, its shape (axis scales, cross-axis) and its axes' angle to the
+    accelerometer's."""
+    sensor = case.cal.gyro
+    if sensor is None or not np.all(np.isfinite(sensor.gain)):
+        return
+    W, sigma, Vt = np.linalg.svd(sensor.gain)
+    if not sigma[-1] > 0:
+        return
+    scale = float(np.exp(np.mean(np.log(sigma))))
+    rotation = W @ Vt
+    shape = Vt.T @ np.diag(sigma / scale) @ Vt
+    off = np.abs(shape - _EYE)
+    angle = math.degrees(math.acos(min(1.0, max(-1.0, (float(np.trace(rotation)) - 1) / 2))))
+    if abs(scale - 1.0) > GYRO_SCALE:
+        yield "gyro_gain", {"what": "scale", "value": f"{scale:.3g}", "limit": "±10 %"}
+    elif np.linalg.det(rotation) < 0:
+        yield "gyro_gain", {"what": "a reversed axis: determinant", "value": "< 0", "limit": "> 0"}
+    elif off.max() > GYRO_SCALE:
+        yield (
+            "gyro_gain",
+            {"what": "axis scale or cross-axis term", "value": f"{off.max():.3g}", "limit": "±0.1"},
+        )
+    elif angle > GYRO_AXES_DEG:
+        numbers = {"value": f"{angle:.1f}°", "limit": f"{GYRO_AXES_DEG:g}°"}
+        yield "gyro_gain", {"what": "angle to the accelerometer's axes", **numbers}
+    elif angle > GYRO_MISALIGNMENT_DEG:
+        yield "gyro_misalignment", {"angle": angle, "limit": GYRO_MISALIGNMENT_DEG}
+
+
+#: A gyroscope fit whose segments misfit below this p-value has its error bars widened.
+GYRO_MISFIT_P = 0.01
+
+
+@_owns("gyro_segments", "gyro_misfit")
+def _gyro_segments(case: Case) -> Iterator[Fired]:
+    """The gyroscope stage's findings (:class:`fieldcal.findings.GyroFindings`)."""
+    found = case.cal.findings.gyro
+    if found is None:
+        return
+    if found.segments_left_out:
+        total = found.segments_used + found.segments_left_out
+        yield "gyro_segments", {"left_out": found.segments_left_out, "total": total}
+    if found.p_value < GYRO_MISFIT_P:
+        yield "gyro_misfit", {"p": found.p_value, "widening": found.widening}
+
+
+@_owns("continuous_undetermined", "continuous_unsettled", "continuous_disturbed")
+def _motion(case: Case) -> Iterator[Fired]:
+    """The continuous-motion estimator's findings (:class:`fieldcal.findings.MotionFindings`):
+    parameters the motion leaves undetermined (with the turns to add), a fit that did not
+    settle, a log mostly down-weighted for body acceleration."""
+    found = case.cal.findings.motion
+    if found is None:
+        return
+    for advice in found.undetermined:
+        yield "continuous_undetermined", {"advice": advice}
+    if found.lacking:
+        yield "continuous_undetermined", {"advice": found.lacking}
+    elif found.unsettled:
+        yield "continuous_unsettled", {"which": ", ".join(found.unsettled)}
+    if found.disturbed_seconds > 0.5 * found.duration_seconds:
+        yield (
+            "continuous_disturbed",
+            {"disturbed": found.disturbed_seconds, "duration": found.duration_seconds},
+        )
 
 
 #: The rules, run in this order by :func:`judge` (reasons of one level keep it).
@@ -602,9 +776,17 @@ CHECKS: tuple[Check, ...] = (
     _likelihood,
     _correlated,
     _temperature_span,
+    _gyro_gain,
+    _gyro_segments,
+    _motion,
 )
+#: The rules on what a stage after the fit adds (the gyroscope of a pose calibration), applied
+#: by :func:`with_late_checks` to the verdict the fit was judged with.
+LATE_CHECKS: tuple[Check, ...] = (_gyro_gain, _gyro_segments)
 
 _ORDER = {"fail": 2, "warn": 1, "note": 0}
+#: The verdict of a worst reason level (``_ORDER``'s number; a note leaves it at pass).
+_VERDICT: dict[int, VerdictLevel] = {2: "fail", 1: "warn", 0: "pass"}
 
 
 def reason(code: str, **values: object) -> Reason:
@@ -616,13 +798,12 @@ def reason(code: str, **values: object) -> Reason:
 def judge(
     cal: Calibration,
     stats: PoseStats | None,
-    found: Findings | None,
+    found: PoseFindings | None,
     accuracy: Accuracy | None = None,
     reference: ReferenceCheck | None = None,
     *,
     targets: Targets | None = None,
     magnitudes: Mapping[str, tuple[float, float]] | None = None,
-    given: Sequence[Reason] = (),
 ) -> Verdict:
     """Run :data:`CHECKS` on a finished calibration; the worst level wins (``note`` never
     raises it), reasons most severe first.
@@ -632,8 +813,7 @@ def judge(
     settled, so the negative-dip note is not given); ``targets`` (default :class:`Targets` ())
     are what the predicted accuracy is compared with; ``magnitudes`` see :class:`Case`.
     ``stats`` and ``found`` are ``None`` for a calibration from continuous motion (the
-    pose-level rules do not apply); ``given`` are reasons its method found itself (the
-    continuous estimator's stretch- and motion-level ones), kept in the verdict.
+    pose-level rules do not apply; the rules on its typed findings do).
     """
     case = Case(
         cal,
@@ -645,10 +825,33 @@ def judge(
         {} if magnitudes is None else magnitudes,
     )
     reasons = [reason(code, **values) for check in CHECKS for code, values in check(case)]
-    reasons += list(given)
     worst = max((_ORDER[r.level] for r in reasons), default=0)
-    level = {2: "fail", 1: "warn", 0: "pass"}[worst]
+    level = _VERDICT[worst]
     return Verdict(level, tuple(sorted(reasons, key=lambda r: -_ORDER[r.level])))
+
+
+def _merged(verdict: Verdict, added: Sequence[Reason]) -> Verdict:
+    """``verdict`` with ``added`` reasons, most severe first, its level raised as they say."""
+    reasons = sorted((*verdict.reasons, *added), key=lambda r: -_ORDER[r.level])
+    worst = max(
+        [{"pass": 0, "warn": 1, "fail": 2}[verdict.level], *(_ORDER[r.level] for r in added)]
+    )
+    return Verdict(_VERDICT[worst], tuple(reasons))
+
+
+def with_late_checks(cal: Calibration) -> Calibration:
+    """``cal`` with :data:`LATE_CHECKS` applied to its verdict: the rules on what a stage after
+    the fit added (the gyroscope of a pose calibration, :mod:`fieldcal.gyro.stage`)."""
+    if cal.verdict is None:
+        return cal
+    case = Case(cal, None, None)
+    added = [reason(code, **values) for check in LATE_CHECKS for code, values in check(case)]
+    if not added:
+        return cal
+    return dataclasses.replace(cal, verdict=_merged(cal.verdict, added))
+
+
+OWNER["dropped_lines"] = "with_dropped_lines"
 
 
 def with_dropped_lines(verdict: Verdict, dropped: Mapping[str, int], rows: int) -> Verdict:
@@ -662,6 +865,4 @@ def with_dropped_lines(verdict: Verdict, dropped: Mapping[str, int], rows: int) 
         return verdict
     which = ", ".join(f"{k} {v}" for k, v in dropped.items() if v)
     added = reason("dropped_lines", dropped=count, total=total, share=count / total, which=which)
-    reasons = sorted((*verdict.reasons, added), key=lambda r: -_ORDER[r.level])
-    worst = max({"pass": 0, "warn": 1, "fail": 2}[verdict.level], _ORDER[added.level])
-    return Verdict({2: "fail", 1: "warn", 0: "pass"}[worst], tuple(reasons))
+    return _merged(verdict, [added])

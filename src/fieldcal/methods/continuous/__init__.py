@@ -27,8 +27,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtrc
 from threadpoolctl import threadpool_limits
 
-from ...calibration import Calibration, Diagnostics, Reason, SensorCalibration, Verdict
+from ...calibration import Calibration, Diagnostics, SensorCalibration
 from ...errors import InputError
+from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
 from .initial import start
 from .model import N_PARAMS, Data, State, accel_block, mag_block
@@ -161,57 +162,30 @@ def _canonical(state: State) -> State:
     return state
 
 
-def _verdict(
-    converged: bool,
-    max_iter: int,
+def _findings(
     check: Identifiability,
     disturbed: list[dict[str, Any]],
     trajectory: dict[str, Any],
     lacking: str | None,
-    refused: str | None = None,
-) -> Verdict:
-    """The continuous fit's own rules: not converged, undetermined by the motion (naming the
-    turns to add), undetermined although the motion was there (the fit, not the recording),
-    mostly disturbed by body acceleration (a note: hand-waving is what the mode is for)."""
-    reasons: list[Reason] = []
-    if not converged:
-        reasons.append(
-            Reason(
-                "continuous_not_converged",
-                "fail",
-                f"the optimiser did not converge in {max_iter} iterations per round; record a "
-                "longer log turning through every orientation",
-            )
-        )
-    reasons += [Reason("continuous_undetermined", "fail", text) for text in check.advice]
-    if lacking is not None:
-        reasons.append(Reason("continuous_undetermined", "fail", lacking))
-    elif check.unsettled:
-        reasons.append(
-            Reason(
-                "continuous_unsettled",
-                "fail",
-                f"the fit left {', '.join(check.unsettled)} undetermined although the log "
-                "turned through them: the fit did not settle (check that the time column is in "
-                "seconds, the gyroscope in rad/s, and that the log is not decimated below "
-                "the motion's bandwidth)",
-            )
-        )
-    if refused is not None:
-        reasons.append(Reason("temperature_span", "note", refused))
-    disturbed_s = sum(d["seconds"] for d in disturbed)
-    if disturbed_s > 0.5 * trajectory["duration_s"]:
-        reasons.append(
-            Reason(
-                "continuous_disturbed",
-                "note",
-                f"{disturbed_s:.3g} s of {trajectory['duration_s']:.3g} s were down-weighted for "
-                "body acceleration; turn the device about its centre rather than waving it",
-            )
-        )
-    levels_seen = {r.level for r in reasons}
-    level = "fail" if "fail" in levels_seen else "warn" if "warn" in levels_seen else "pass"
-    return Verdict(level, tuple(reasons))
+    thermal: dict[str, Any] | None,
+) -> Findings:
+    """What the verdict's rules judge (:mod:`fieldcal.findings`): what the motion leaves
+    undetermined (with the turns to add), what it lacks or what the fit left unsettled, the
+    seconds down-weighted for body acceleration, a temperature span too small for terms. The
+    estimator builds no reason: ``continuous_*`` and ``temperature_span`` in
+    :mod:`fieldcal.trust.verdict` read these."""
+    motion = MotionFindings(
+        undetermined=tuple(check.advice),
+        lacking=lacking or "",
+        unsettled=tuple(check.unsettled),
+        disturbed_seconds=float(sum(d["seconds"] for d in disturbed)),
+        duration_seconds=float(trajectory["duration_s"]),
+    )
+    span = None
+    if thermal is not None and "refused" in thermal:
+        low, high = (float(x) for x in thermal["span_c"])
+        span = TemperatureSpan(low, high, float(thermal["reference_c"]))
+    return Findings(motion=motion, temperature_span=span)
 
 
 def fit_continuous(
@@ -279,7 +253,9 @@ def fit_continuous(
         ``options`` records ``mode``,
         ``trajectory``, ``motion``, ``downweighted``, ``noise``, ``error_bars`` (the batch's
         seconds, the widening per sensor) and ``identifiability``;
-        ``verdict`` from :func:`fit_continuous`'s own rules (not converged, undetermined).
+        ``findings`` (:class:`fieldcal.findings.MotionFindings`: undetermined, unsettled,
+        disturbed; no verdict: :func:`fieldcal.trust.continuous_motion.trust_continuous` judges
+        it by the registered rules).
 
     Raises
     ------
@@ -467,8 +443,7 @@ def _fit(
         # on the readings as logged: a fit that did not settle has no trajectory to trust
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
         lacking = motion_advice(a, raw_turned)
-    refused = None if thermal is None else thermal.get("refused")
-    verdict = _verdict(converged, max_iter, check, disturbed, trajectory, lacking, refused)
+    findings = _findings(check, disturbed, trajectory, lacking, thermal)
     options: dict[str, Any] = {
         "mode": "continuous",
         "trajectory": trajectory,
@@ -520,7 +495,7 @@ def _fit(
         options=options,
         covariance=cov,
         diagnostics=Diagnostics(2.0 * cost, dof, float(chdtrc(dof, 2.0 * cost)), np.zeros(0)),
-        verdict=verdict,
+        findings=findings,
         gyro=SensorCalibration(
             gain=Kg,
             bias=state.gyro_bias,
