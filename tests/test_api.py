@@ -130,7 +130,7 @@ def test_continuous_input_of_the_wrong_kind(method):
         ({"tol": "1e-9"}, "tol must be a positive finite number"),
         ({"mag_mirrored": "yes"}, "mag_mirrored must be True or False"),
         ({"robust": 1}, "robust must be True or False"),
-        ({"trim": "no"}, "trim must be True or False"),
+        ({"cut_unsteady": "no"}, "cut_unsteady must be True or False"),
         ({"false_alarm": 0}, r"false_alarm must be in \(0, 1\)"),
         ({"on_progress": "print"}, "on_progress must be a function"),
         ({"noise": np.eye(3) * 1j}, "noise for accel must be a number or an array of real"),
@@ -172,3 +172,15 @@ def test_degenerate_input_never_shows_numpy_errors():
                     assert "\n" not in str(exc)
                 else:
                     cal.check_values()
+
+
+def test_the_old_trim_keyword_is_taken_with_a_deprecation_warning():
+    """``trim=`` (the fit's cut of unsteady samples) is now ``cut_unsteady=``: the old name
+    gives the same calibration, with a DeprecationWarning; both at once is an error."""
+    s = fieldcal.simulate("paper", seed=2)
+    new = fieldcal.calibrate(s.accel, s.mag, cut_unsteady=False)
+    with pytest.warns(DeprecationWarning, match="trim= is now cut_unsteady="):
+        old = fieldcal.calibrate(s.accel, s.mag, trim=False)
+    assert old == new and old.options["trim"] is False
+    with pytest.raises(ValueError, match="both given"):
+        fieldcal.calibrate(s.accel, s.mag, trim=False, cut_unsteady=True)

@@ -43,14 +43,16 @@ def test_each_option_once_with_its_stage_flag_and_help():
     assert READ_OPTIONS == tuple(n for n, o in OPTIONS.items() if o.stage == "read")
     # the library's own options: no flag, no column
     assert {n for n, o in OPTIONS.items() if not o.on_command_line} == {
-        "trim",
+        "cut_unsteady",
         "body_frame",
         "false_alarm",
     }
 
 
 def test_the_front_ends_are_derived_from_the_table():
-    assert {c: k for c, (k, _) in OPTION_COLUMNS.items()} == {c: o.name for c, o in FLAGGED.items()}
+    columns = {c: o.name for c, o in FLAGGED.items()}
+    columns.update({o.old_column: o.name for o in FLAGGED.values() if o.old_flag})  # old names
+    assert {c: k for c, (k, _) in OPTION_COLUMNS.items()} == columns
     for command in ("calibrate", "batch"):
         params = {p.name for p in cli.commands[command].params}
         assert set(FLAGGED) <= params, set(FLAGGED) - params

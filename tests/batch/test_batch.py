@@ -228,7 +228,7 @@ def test_manifest_devices_and_per_log_options(logs, tmp_path):
     assert [r["device"] for r in result.rows] == ["BOARD-7", "BOARD-8"]
     assert [r["method"] for r in result.rows] == ["ellipsoid", "mle"]
     written = fieldcal.Calibration.from_json((tmp_path / "out/BOARD-7/cal.json").read_text())
-    assert written == calibrate_log(logs[0], method="ellipsoid", robust=False, trim=False)
+    assert written == calibrate_log(logs[0], method="ellipsoid", robust=False, cut_unsteady=False)
     assert written.options["robust"] is False
 
 

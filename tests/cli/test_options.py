@@ -13,6 +13,7 @@ import fieldcal
 from fieldcal.cli import cli
 from fieldcal.methods import METHODS
 from fieldcal.output.exports import FORMATS
+from fieldcal.simulation.continuous import simulate_continuous
 
 
 def test_choices_come_from_the_registries():
@@ -38,7 +39,7 @@ def test_choices_come_from_the_registries():
         (("--window", "inf"), "not a finite number"),
         (("--min-still", "inf"), "--min-still"),
         (("--min-still", "nan"), "--min-still"),
-        (("--trim", "-1"), "--trim"),
+        (("--still-trim", "-1"), "--still-trim"),
         (("--trim", "inf"), "--trim"),
         (("--rate", "0"), "--rate"),
         (("--still-threshold", "1e300"), "out of range"),
@@ -53,6 +54,19 @@ def test_choices_come_from_the_registries():
 def test_usage_errors_are_one_line(files, args, match):
     line = user_error("calibrate", files["session"], *args, match=match)
     assert "Usage:" not in line and "Traceback" not in line
+
+
+def test_the_old_trim_flag_is_taken_with_a_note(tmp_path):
+    """--trim, the still detector's cut at each interval's ends, is now --still-trim (one word,
+    one meaning): the old spelling gives the same calibration and says the new one."""
+    log = tmp_path / "rests.csv"
+    simulate_continuous("paper", seed=3).write_csv(str(log))
+    old = run("calibrate", log, "--trim", "0.1", "--no-gyro", "-o", tmp_path / "old.json")
+    assert "--trim is now --still-trim" in old.stderr
+    new = run("calibrate", log, "--still-trim", "0.1", "--no-gyro", "-o", tmp_path / "new.json")
+    assert "is now" not in new.stderr
+    a, b = (json.loads((tmp_path / f).read_text()) for f in ("old.json", "new.json"))
+    assert a["still_detection"] == b["still_detection"] and a["accel"] == b["accel"]
 
 
 def test_bad_options(files, tmp_path):

@@ -151,83 +151,13 @@ def fit(
         Parameters in fieldcal's gauge; ``converged`` is the optimiser's own flag; ``options``
         records the starts tried. Uncertainty and certificate are added by the shared path.
     """
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ValueError(f"max_iter must be a whole number of at least 1, got {brief(max_iter)}")
-    if isinstance(tol, bool) or not (
-        isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0
-    ):
-        raise ValueError(f"tol must be a positive finite number, got {brief(tol)}")
-    if initial is not None and not isinstance(initial, Calibration):
-        raise ValueError(
-            f"initial must be a fieldcal.Calibration (e.g. Calibration.from_json(text)), "
-            f"got {type(initial).__name__}"
-        )
+    _check_options(max_iter, tol, initial)
     sensors = stats.sensors
-    n = stats.n_poses
-    need = 8 if len(sensors) == 2 else 10
-    if n < need:
-        raise ValueError(
-            f"{n} poses given; method 'mle' needs at least {need} "
-            + (
-                "(6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
-                if need == 8
-                else "for one sensor (3N readings must outnumber 2N tilt angles plus 9 "
-                "sensor parameters)"
-            )
-        )
+    _check_count(stats)
     check_spread(stats)  # refuse rotations about one axis before any fit
     problem = build_problem(stats, body_frame)
-
-    best: Result | None = None
-    tried: list[str] = []
-    total_iter = 0
-
-    def consider(state: State | None, label: str) -> None:
-        consider_all([(state, label)])
-
-    def consider_all(candidates: list[tuple[State | None, str]]) -> None:
-        """Run the starts (together when several: :func:`_solve_starts`) and keep the first
-        to reach the lowest J."""
-        nonlocal best, total_iter
-        todo = [(state, name) for state, name in candidates if state is not None]
-        known = None if best is None else best.cost
-        results = _solve_starts(problem, [s for s, _ in todo], int(max_iter), float(tol), known)
-        for (_, name), res in zip(todo, results, strict=True):
-            total_iter += res.iterations
-            tried.append(name)
-            if best is None or res.cost < best.cost - 1e-9 * (1 + res.cost):
-                best = res
-
-    def label(model: tuple[str, str]) -> str:
-        return model[0] if len(problem.sensors) == 1 or model[0] == model[1] else "/".join(model)
-
-    if initial is not None:
-        consider(state_from_calibration(problem, initial), "initial")
-        starts = STARTS
-    else:
-        for model in STARTS[:2]:
-            consider(closed_form_start(problem, model), label(model))
-        starts = STARTS[2:]
-    if len(problem.sensors) == 1:
-        starts = tuple(m for m in starts if m[0] == m[1])
-    few = n < FEW_POSES and initial is None
-    # a doubtful certificate may mean a local minimum; a warm start (the trust path refitting
-    # with new weights) stays in the basin it was given
-    doubtful = initial is None and chdtrc(problem.dof, best.cost if best else np.inf) < P_RETRY
-    if few or best is None or doubtful:
-        more = [
-            (closed_form_start(problem, model), label(model))
-            for model in starts
-            if label(model) not in tried
-        ]
-        if n < PENCIL_POSES:
-            more += [(state, f"pencil{k}") for k, state in enumerate(few_pose_starts(problem))]
-        consider_all(more)
-    if best is None:
-        raise ValueError(
-            "no closed-form start: the pose means do not outline an ellipsoid; "
-            "add poses with each axis pointing up and down"
-        )
+    search = _Search(problem, int(max_iter), float(tol))
+    best = search.run(stats.n_poses, initial)
     state = _canonical(problem, best.state)
     sensor_cals = {
         s: SensorCalibration(
@@ -245,7 +175,100 @@ def fit(
         magnetic=field(problem, "mag", state.dip) if "mag" in sensors else None,
         rotations=state.rotations,
         method="mle",
-        iterations=total_iter,
+        iterations=search.iterations,
         converged=bool(best.converged),
-        options={"max_iter": int(max_iter), "tol": float(tol), "starts": tried},
+        options={"max_iter": int(max_iter), "tol": float(tol), "starts": search.tried},
     )
+
+
+def _check_options(max_iter: object, tol: object, initial: object) -> None:
+    """One-line errors for :func:`fit`'s options."""
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ValueError(f"max_iter must be a whole number of at least 1, got {brief(max_iter)}")
+    if isinstance(tol, bool) or not (
+        isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0
+    ):
+        raise ValueError(f"tol must be a positive finite number, got {brief(tol)}")
+    if initial is not None and not isinstance(initial, Calibration):
+        raise ValueError(
+            f"initial must be a fieldcal.Calibration (e.g. Calibration.from_json(text)), "
+            f"got {type(initial).__name__}"
+        )
+
+
+def _check_count(stats: PoseStats) -> None:
+    """Enough poses for the joint (8) or a single-sensor (10) problem."""
+    n = stats.n_poses
+    need = 8 if len(stats.sensors) == 2 else 10
+    if n < need:
+        raise ValueError(
+            f"{n} poses given; method 'mle' needs at least {need} "
+            + (
+                "(6N readings must outnumber the 3N rotation angles plus 22 sensor parameters)"
+                if need == 8
+                else "for one sensor (3N readings must outnumber 2N tilt angles plus 9 "
+                "sensor parameters)"
+            )
+        )
+
+
+class _Search:
+    """The starts tried (closed-form, then more when the poses are few or the certificate
+    doubtful) and the first to reach the lowest J."""
+
+    def __init__(self, problem: Problem, max_iter: int, tol: float) -> None:
+        self.problem, self.max_iter, self.tol = problem, max_iter, tol
+        self.best: Result | None = None
+        self.tried: list[str] = []
+        self.iterations = 0
+
+    def consider(self, candidates: list[tuple[State | None, str]]) -> None:
+        """Run the starts (together when several: :func:`_solve_starts`) and keep the first
+        to reach the lowest J."""
+        todo = [(state, name) for state, name in candidates if state is not None]
+        known = None if self.best is None else self.best.cost
+        states = [s for s, _ in todo]
+        results = _solve_starts(self.problem, states, self.max_iter, self.tol, known)
+        for (_, name), res in zip(todo, results, strict=True):
+            self.iterations += res.iterations
+            self.tried.append(name)
+            if self.best is None or res.cost < self.best.cost - 1e-9 * (1 + res.cost):
+                self.best = res
+
+    def label(self, model: tuple[str, str]) -> str:
+        """A start's name: its sensors' models (one when they agree)."""
+        one = len(self.problem.sensors) == 1 or model[0] == model[1]
+        return model[0] if one else "/".join(model)
+
+    def run(self, n: int, initial: Calibration | None) -> Result:
+        """The best result over the starts for ``n`` poses (``initial``: a warm start)."""
+        problem = self.problem
+        if initial is not None:
+            self.consider([(state_from_calibration(problem, initial), "initial")])
+            starts = STARTS
+        else:
+            for model in STARTS[:2]:
+                self.consider([(closed_form_start(problem, model), self.label(model))])
+            starts = STARTS[2:]
+        if len(problem.sensors) == 1:
+            starts = tuple(m for m in starts if m[0] == m[1])
+        few = n < FEW_POSES and initial is None
+        # a doubtful certificate may mean a local minimum; a warm start (the trust path
+        # refitting with new weights) stays in the basin it was given
+        best = self.best
+        doubtful = initial is None and chdtrc(problem.dof, best.cost if best else np.inf) < P_RETRY
+        if few or best is None or doubtful:
+            more = [
+                (closed_form_start(problem, model), self.label(model))
+                for model in starts
+                if self.label(model) not in self.tried
+            ]
+            if n < PENCIL_POSES:
+                more += [(state, f"pencil{k}") for k, state in enumerate(few_pose_starts(problem))]
+            self.consider(more)
+        if self.best is None:
+            raise ValueError(
+                "no closed-form start: the pose means do not outline an ellipsoid; "
+                "add poses with each axis pointing up and down"
+            )
+        return self.best
