@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -158,6 +159,21 @@ def test_most_modules_have_their_own_test_file():
         f"{share:.0%} of {len(modules)} modules have tests/<room>/test_<module>.py (goal "
         f"{TESTED_SHARE:.0%}); missing: {', '.join(missing)}"
     )
+
+
+def test_paths_in_the_docs_exist():
+    """Every path of the project the docs name with its folder (``src/fieldcal/trust/evaluate.py``,
+    ``trust/evaluate.py``, ``tests/...``, ``benchmarks/...``) is a file of the project."""
+    root = SRC.parents[1]
+    ours = {"src", "tests", "benchmarks", "docs", *RANK}
+    docs = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    stale = []
+    for doc in docs:
+        for path in re.findall(r"`([\w./-]+/[\w-]+\.(?:py|md))`", doc.read_text("utf-8")):
+            places = (root / path, SRC / path.removeprefix("src/fieldcal/"), doc.parent / path)
+            if path.split("/")[0] in ours and not any(p.exists() for p in places):
+                stale.append(f"{doc.relative_to(root)}: {path}")
+    assert stale == []
 
 
 def test_moved_modules_still_import_for_one_release():
