@@ -64,6 +64,8 @@ def _known_logs(draw: st.DrawFn):
     )
     # no empty field between blanks: a missing value is written nan there
     blank = "nan" if delimiter == " " else draw(st.sampled_from(["", " ", "nan"]))
+    if delimiter == "\t" and blank != "nan":  # a row of empty tab fields is a blank line
+        values = [[0.0, *row[1:]] if all(map(math.isnan, row)) else row for row in values]
 
     def cell(v: float) -> str:
         if math.isnan(v):
