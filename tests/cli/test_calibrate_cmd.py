@@ -198,7 +198,7 @@ def test_export_default_format_and_bad_format(files):
 
 
 def test_report(files, tmp_path):
-    pytest.importorskip("matplotlib")
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     html = tmp_path / "r.html"
     run("report", files["cal"], files["session"], "-o", html, "--png", tmp_path / "png")
     page = html.read_text()
@@ -272,7 +272,7 @@ def test_apply_keeps_the_format_of_the_output_suffix(files, tmp_path):
     run("apply", files["cal"], files["session"], "-o", tmp_path / "a.npz")
     with np.load(tmp_path / "a.npz") as data:
         assert {"pose", "ax", "mx_cal"} <= set(data.files) and data["mx_cal"].dtype == float
-    pytest.importorskip("pyarrow")
+    pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
     import pyarrow.parquet as pq
 
     run("apply", files["cal"], files["session"], "-o", tmp_path / "a.parquet")

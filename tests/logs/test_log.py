@@ -410,7 +410,7 @@ def test_explicit_columns_override(tmp_path):
 
 # ----------------------------------------------------------------------------- the Log
 def test_a_table_in_memory_and_to_pandas(tmp_path):
-    pd = pytest.importorskip("pandas")
+    pd = pytest.importorskip("pandas", reason="pandas (the pandas extra) not installed")
     _, columns = _still_log()
     columns["ax"] = columns["ax"].copy()
     columns["ax"][5] = np.nan
