@@ -25,6 +25,7 @@ Start it after the reader opened :attr:`PtyDevice.port` (pyserial flushes the in
 from __future__ import annotations
 
 import fcntl
+import importlib.util
 import os
 import select
 import struct
@@ -37,10 +38,17 @@ from contextlib import suppress
 from typing import Literal
 
 import numpy as np
+import pytest
 from numpy.typing import ArrayLike, NDArray
 
 from fieldcal.calibration import Calibration
 from fieldcal.simulation.device import COLUMNS, Device, Samples
+
+#: A test that reads a board on a serial port needs pyserial (the ``serial`` extra).
+needs_serial = pytest.mark.skipif(
+    importlib.util.find_spec("serial") is None,
+    reason="pyserial (the serial extra) not installed: a serial port is read with it",
+)
 
 Array = NDArray[np.float64]
 NextPose = Callable[[int], ArrayLike | None]

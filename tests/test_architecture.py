@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -127,6 +128,55 @@ def test_modules_and_functions_fit_in_a_head():
                 if length > 150:
                     too_long.append(f"{p.relative_to(SRC)}:{n.name}: {length} lines")
     assert too_long == []
+
+
+#: Share of modules that must have their own test file (issue 32: 44 % then, goal 70 %).
+TESTED_SHARE = 0.70
+TESTS = Path(__file__).parent
+
+
+def _test_files(path: Path) -> list[Path]:
+    """Where the tests of module ``path`` live: ``tests/<room>/test_<module>.py`` (a module of a
+    sub-package may name the sub-package too: ``methods/continuous/model.py`` ->
+    ``tests/methods/test_continuous_model.py``); a top-level module's in ``tests/``."""
+    parts = path.relative_to(SRC).with_suffix("").parts
+    if len(parts) == 1:
+        return [TESTS / f"test_{parts[0]}.py"]
+    room, inner = parts[0], parts[1:]
+    names = {f"test_{inner[-1]}.py", f"test_{'_'.join(inner)}.py"}
+    return [TESTS / room / name for name in sorted(names)]
+
+
+def _public_modules() -> list[Path]:
+    """Modules with code of their own: not packages' ``__init__``, ``__main__`` or private ones."""
+    return [p for p in _modules() if not p.name.startswith("_")]
+
+
+def test_most_modules_have_their_own_test_file():
+    modules = _public_modules()
+    missing = [
+        str(p.relative_to(SRC)) for p in modules if not any(t.exists() for t in _test_files(p))
+    ]
+    share = 1 - len(missing) / len(modules)
+    assert share >= TESTED_SHARE, (
+        f"{share:.0%} of {len(modules)} modules have tests/<room>/test_<module>.py (goal "
+        f"{TESTED_SHARE:.0%}); missing: {', '.join(missing)}"
+    )
+
+
+def test_paths_in_the_docs_exist():
+    """Every path of the project the docs name with its folder (``src/fieldcal/trust/evaluate.py``,
+    ``trust/evaluate.py``, ``tests/...``, ``benchmarks/...``) is a file of the project."""
+    root = SRC.parents[1]
+    ours = {"src", "tests", "benchmarks", "docs", *RANK}
+    docs = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    stale = []
+    for doc in docs:
+        for path in re.findall(r"`([\w./-]+/[\w-]+\.(?:py|md))`", doc.read_text("utf-8")):
+            places = (root / path, SRC / path.removeprefix("src/fieldcal/"), doc.parent / path)
+            if path.split("/")[0] in ours and not any(p.exists() for p in places):
+                stale.append(f"{doc.relative_to(root)}: {path}")
+    assert stale == []
 
 
 def test_moved_modules_still_import_for_one_release():

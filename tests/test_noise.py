@@ -394,7 +394,7 @@ def test_no_rate_without_a_time_column():
 
 
 def test_report_to_dict_and_figure_files(tmp_path):
-    pytest.importorskip("matplotlib")
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     from fieldcal.output.noise_figures import noise_figure, write_noise_figure
 
     report = characterise_noise(

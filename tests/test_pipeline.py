@@ -48,7 +48,7 @@ def test_every_source_gives_the_cli_result(session, tmp_path):
     _same(from_path, fieldcal.calibrate_log(str(path)))
     _same(from_path, fieldcal.calibrate_log(columns))
     _same(from_path, fieldcal.calibrate_log(fieldcal.read_log(path)))
-    pandas = pytest.importorskip("pandas")
+    pandas = pytest.importorskip("pandas", reason="pandas (the pandas extra) not installed")
     _same(from_path, fieldcal.calibrate_log(pandas.DataFrame(columns)))
     # the poses are listed with their rows in the log, as in the CLI's JSON
     assert [p["start"] for p in from_path.poses] == [p["start"] for p in from_cli.poses]
@@ -60,7 +60,7 @@ def test_read_log_takes_column_names_and_tables(session):
     log = fieldcal.read_log(renamed, accel_cols="tx,ay,az")
     assert log.used["accel"] == ["tx", "ay", "az"]
     np.testing.assert_array_equal(log.accel[:, 0], columns["ax"])
-    pyarrow = pytest.importorskip("pyarrow")
+    pyarrow = pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
     table = fieldcal.read_log(pyarrow.table(columns))
     np.testing.assert_array_equal(table.mag, fieldcal.read_log(path).mag)
 

@@ -221,7 +221,7 @@ def test_cli_location_writes_the_reference(site_log, tmp_path):
     assert doc["reference"]["dip_deg"] == pytest.approx(67.18, abs=0.01)
     assert doc["options"]["mag_handedness"] == "reference"
     assert "WMM2025" in result.output and "declination" in result.output
-    pytest.importorskip("matplotlib")
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     page = tmp_path / "report.html"
     report = CliRunner().invoke(cli, ["report", str(out), str(site_log), "-o", str(page)])
     assert report.exit_code == 0, report.output

@@ -14,7 +14,7 @@ import threading
 
 import numpy as np
 import pytest
-from _device import PtyDevice
+from _device import PtyDevice, needs_serial
 from _words import parse_words
 from click.testing import CliRunner
 from rich.console import Console
@@ -240,6 +240,7 @@ def _paper_rotations(seed):
     return fieldcal.simulate("paper", seed=seed).drawn["rotations"]
 
 
+@needs_serial
 def test_a_device_on_a_serial_port(tmp_path):
     """A board on a (pseudo-)serial port streams a continuous session as fast as it can, with
     garbage, then is unplugged: every pose is announced, the result is the truth within its
@@ -267,6 +268,7 @@ def test_a_device_on_a_serial_port(tmp_path):
     assert sum(document["capture"]["skipped"].values()) >= 4  # the garbage, counted
 
 
+@needs_serial
 def test_an_unplugged_board_keeps_every_line(tmp_path):
     """Unplugged after five poses: the capture ends, says why in one line, and log.csv holds
     every line the board wrote, in order."""
@@ -286,6 +288,7 @@ def test_an_unplugged_board_keeps_every_line(tmp_path):
     assert all(r.rsplit(",", 1)[0] == w for r, w in zip(recorded, written, strict=True))
 
 
+@needs_serial
 def test_a_user_who_follows_the_suggestions(tmp_path):
     """A simulated user reads each printed suggestion, turns the board that way (words parsed
     back into a rotation by the test's own parser, held within a few degrees) and the capture
@@ -452,6 +455,7 @@ def test_following_a_growing_file_until_pass(recorded, tmp_path):
     assert json.loads((out / "cal.json").read_text())["capture"]["rows"] < len(lines) - 1
 
 
+@needs_serial
 def test_ctrl_c_writes_what_was_received(tmp_path):
     """Ctrl-C in the middle of a paced stream: the capture stops at once, says so, and keeps
     every line received with the calibration of the poses so far."""

@@ -312,7 +312,7 @@ def test_imucal_full_turns_give_the_ferraris_scale(shared_data):
     up). A full turn ends where it began, so the rotations are the identity and only the
     scale along each turn's axis is determined; imucal's Ferraris fit divides the integrated
     raw rate by the known 2π instead, which also gives the axes' misalignment."""
-    pytest.importorskip("pandas")
+    pytest.importorskip("pandas", reason="pandas (the pandas extra) not installed")
     turns = imucal_turns(shared_data("imucal").parent)
     fit, ref = turns.fit(), turns.reference
     ferraris = np.abs(np.diag(np.array(ref["K_g"]) @ np.array(ref["R_g"]))) * np.degrees(1.0)

@@ -12,7 +12,7 @@ from _logs import _Double
 import fieldcal.logs.apply as apply_module
 from fieldcal.logs.apply import apply_to_file
 
-pytest.importorskip("pyarrow")
+pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
 
 
 def _log(eol: str, ended: bool) -> str:

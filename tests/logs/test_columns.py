@@ -125,7 +125,7 @@ def test_npz_and_parquet_match_csv(tmp_path):
     log = load_log(tmp_path / "log.npz")
     assert np.array_equal(log.accel, a) and np.array_equal(log.mag, m)
     assert log.used["accel"] == ["accel_x", "accel_y", "accel_z"]
-    pa = pytest.importorskip("pyarrow")
+    pa = pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
     import pyarrow.parquet as pq
 
     table = pa.table({"acc_x": a[:, 0], "acc_y": a[:, 1], "acc_z": a[:, 2], "label": ["p"] * 20})
@@ -540,7 +540,7 @@ def test_apply_npz_keeps_every_array_as_it_was(tmp_path):
 
 
 def test_apply_parquet_keeps_its_types(tmp_path):
-    pa = pytest.importorskip("pyarrow")
+    pa = pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
     import pyarrow.parquet as pq
 
     rng = np.random.default_rng(4)

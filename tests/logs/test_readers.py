@@ -478,7 +478,9 @@ def test_pyarrow_paths_do_not_load_pandas(tmp_path):
 def test_a_small_log_goes_to_pyarrow_once_it_is_loaded(tmp_path):
     """Below ARROW_MIN_BYTES a log is numpy's unless this process has loaded pyarrow's reader
     (a batch worker does): then pyarrow reads it, the same table."""
-    pytest.importorskip("pyarrow.csv")  # loaded now, as in a batch worker
+    pytest.importorskip(
+        "pyarrow.csv", reason="pyarrow (the parquet extra) not installed"
+    )  # loaded now, as in a batch worker
     rows = "".join(f"{i},{i / 7},-{i}\n" for i in range(200))
     path = _write(tmp_path / "log.csv", f"t,ax,ay\n{rows}")
     assert path.stat().st_size < text_module.ARROW_MIN_BYTES
@@ -615,8 +617,8 @@ def test_log_device_from_each_format(tmp_path):
     data = np.loadtxt(csv, delimiter=",", skiprows=3)
     np.savez(tmp_path / "b.npz", t=data[:, 0], accel=data[:, 1:4], mag=data[:, 4:7], sn="SN-9")
     assert load_log(str(tmp_path / "b.npz")).device == "SN-9"
-    pa = pytest.importorskip("pyarrow")
-    pq = pytest.importorskip("pyarrow.parquet")
+    pa = pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow (the parquet extra) not installed")
     names = ["t", "ax", "ay", "az", "mx", "my", "mz"]
     table = pa.table({n: data[:, j] for j, n in enumerate(names)})
     table = table.replace_schema_metadata({b"Device ID": b"PQ-3"})

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-pytest.importorskip("rosbags")
+pytest.importorskip("rosbags", reason="rosbags (the ros extra) not installed")
 
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import Writer as Writer2
@@ -636,7 +636,7 @@ def test_calibrate_and_report_a_bag(tmp_path, kind):
     assert named.exit_code == 0, named.output
     refused = runner.invoke(cli, ["calibrate", str(csv), "--imu-topic", "/imu", "--json"])
     assert refused.exit_code == 2 and "are for ROS bags" in refused.output
-    pytest.importorskip("matplotlib")
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     report = runner.invoke(
         cli, ["report", str(tmp_path / "bag.json"), str(bag), "-o", str(tmp_path / "r.html")]
     )

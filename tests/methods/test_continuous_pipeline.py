@@ -175,7 +175,7 @@ def test_report_of_a_continuous_calibration(handwave_csv, tmp_path):
     """The report (issue 23 item 5): the trajectory and coverage figure and the residuals over
     time take the place of the pose figures, and the page does not call the file old for
     having no per-pose residuals."""
-    pytest.importorskip("matplotlib")
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     path, _ = handwave_csv
     cal = run_log(read_log(path), LogSettings.of(poses="continuous")).calibration
     assert {"trajectory", "motion_residuals"} <= set(FIGURES)

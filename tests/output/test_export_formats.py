@@ -16,7 +16,6 @@ import re
 import numpy as np
 import pytest
 import scipy.io
-import yaml
 from click.testing import CliRunner
 
 import fieldcal
@@ -326,6 +325,7 @@ KALIBR_KEYS = {
 
 
 def test_kalibr_yaml_loads_with_every_figure_as_a_value():
+    yaml = pytest.importorskip("yaml", reason="pyyaml (the test extra) not installed")
     report = _noise_report()
     doc = yaml.safe_load(report.kalibr_yaml())
     assert set(doc) == KALIBR_KEYS | {"rostopic"}
@@ -338,6 +338,7 @@ def test_kalibr_yaml_loads_with_every_figure_as_a_value():
 
 def test_openvins_yaml_loads_with_opencv_filestorage(tmp_path):
     """OpenVINS reads kalibr_imu_chain.yaml with cv::FileStorage: so does this test."""
+    yaml = pytest.importorskip("yaml", reason="pyyaml (the test extra) not installed")
     cv2 = pytest.importorskip("cv2", reason="opencv-python-headless (the test extra) not installed")
     report = _noise_report()
     kalibr_doc = yaml.safe_load(report.kalibr_yaml())

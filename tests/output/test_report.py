@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-matplotlib = pytest.importorskip("matplotlib")
+matplotlib = pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
 matplotlib.use("Agg")
 
 from fieldcal.calibration import Verdict  # noqa: E402

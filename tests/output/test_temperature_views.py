@@ -57,6 +57,7 @@ def test_the_report_draws_the_poses_biases_on_the_fitted_curve(warm):
         spread = np.abs(bias - curve).max()
         drift = np.abs(model.shift(t)).max()
         assert spread < 0.2 * drift
+    pytest.importorskip("matplotlib", reason="matplotlib (the plot extra) not installed")
     figures = report_figures(cal)  # without the log: the calibration holds the data
     assert "temperature" in figures
     assert len(figures["temperature"].axes) == 3
