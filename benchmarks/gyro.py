@@ -394,12 +394,12 @@ def scaling(sizes: tuple[int, ...] = (100, 400, 1200)) -> str:
         "",
         "Time and memory grow with the rows and the poses alike, linearly: the normal "
         "equations are block tridiagonal over the poses with a border of the gain and the "
-        "shared orientation errors (`gyro/gyro_normal.py`, LAPACK's banded Cholesky in "
-        "`gyro/gyro_banded.py`), equal to the dense computation to 1e-9 "
-        "(`tests/gyro/test_gyro_normal.py`); the passes over the motion's intervals "
-        "(`gyro/gyro_pass.py`) take a chunk of segments at a time, by component, and the last "
+        "shared orientation errors (`gyro/normal.py`, LAPACK's banded Cholesky in "
+        "`gyro/banded.py`), equal to the dense computation to 1e-9 "
+        "(`tests/gyro/test_normal.py`); the passes over the motion's intervals "
+        "(`gyro/passes.py`) take a chunk of segments at a time, by component, and the last "
         "few are kept, so a fit is about nine passes over the samples between the poses "
-        "(`tests/gyro/test_gyro_pass.py` against the interval-by-interval computation). The "
+        "(`tests/gyro/test_passes.py` against the interval-by-interval computation). The "
         "peak memory is the log's gyroscope samples and the segments' intervals (a few "
         "arrays of their length) plus a few MB of work arrays.",
     ]

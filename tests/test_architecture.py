@@ -106,13 +106,35 @@ def test_no_function_level_relative_imports():
     assert offenders == []
 
 
+#: File names that may repeat across rooms: the same role in each (a room's model, solver, ...;
+#: docs/architecture.md, "How a module is named").
+SHARED_ROLES = {
+    "model.py",
+    "solver.py",
+    "start.py",
+    "noise.py",
+    "observability.py",
+    "temperature.py",
+    "uncertainty.py",
+}
+
+
 def test_no_two_modules_share_a_file_name():
-    """A newcomer who opens ``poses.py`` opens the one module of that name."""
+    """A newcomer who opens ``poses.py`` opens the one module of that name; only a role that
+    every room names alike (``SHARED_ROLES``) repeats, and no module carries its room's name as
+    a prefix (``gyro/gyro_solver.py``)."""
     seen: dict[str, list[str]] = {}
     for p in _modules():
         if p.name not in ("__init__.py", "__main__.py"):
             seen.setdefault(p.name, []).append(str(p.relative_to(SRC)))
-    assert {name: paths for name, paths in seen.items() if len(paths) > 1} == {}
+    repeated = {name: paths for name, paths in seen.items() if len(paths) > 1}
+    assert {name: paths for name, paths in repeated.items() if name not in SHARED_ROLES} == {}
+    prefixed = [
+        str(p.relative_to(SRC))
+        for p in _modules()
+        if p.parent != SRC and p.name.startswith(f"{p.parent.name}_")
+    ]
+    assert prefixed == []
 
 
 def test_modules_and_functions_fit_in_a_head():

@@ -31,6 +31,19 @@ MOVED: dict[str, str] = {
     "fieldcal.methods.mle.model": "fieldcal.likelihood.pose_model",
     "fieldcal.methods.mle.lm": "fieldcal.likelihood.levenberg",
     "fieldcal.methods.mle.uncertainty": "fieldcal.likelihood.cramer_rao",
+    # fieldcal 0.5: the gyroscope room's modules without the room's prefix
+    "fieldcal.gyro.gyro_banded": "fieldcal.gyro.banded",
+    "fieldcal.gyro.gyro_data": "fieldcal.gyro.data",
+    "fieldcal.gyro.gyro_model": "fieldcal.gyro.model",
+    "fieldcal.gyro.gyro_noise": "fieldcal.gyro.noise",
+    "fieldcal.gyro.gyro_normal": "fieldcal.gyro.normal",
+    "fieldcal.gyro.gyro_observability": "fieldcal.gyro.observability",
+    "fieldcal.gyro.gyro_pass": "fieldcal.gyro.passes",
+    "fieldcal.gyro.gyro_result": "fieldcal.gyro.result",
+    "fieldcal.gyro.gyro_solver": "fieldcal.gyro.solver",
+    "fieldcal.gyro.gyro_start": "fieldcal.gyro.start",
+    "fieldcal.gyro.gyro_temperature": "fieldcal.gyro.temperature",
+    "fieldcal.gyro.gyro_uncertainty": "fieldcal.gyro.uncertainty",
 }
 
 

@@ -4,14 +4,14 @@
   as given (quaternions, a log-depth scan; bursts of equal timestamps spread);
 - :mod:`.estimate` — :func:`fit_gyro`: maximum likelihood against the poses' rotations of a
   joint calibration (``method="rotations"``) or, with an accelerometer alone, against the
-  gravity directions (``"gravity"``); the result is a :class:`GyroFit` (:mod:`.gyro_result`).
-  Its steps: :mod:`.gyro_data` (poses, drift, segments), :mod:`.gyro_model` (residuals,
-  Jacobians), :mod:`.gyro_pass` (one pass over the intervals, a chunk at a time),
-  :mod:`.gyro_start`, :mod:`.gyro_noise` (the segments' covariance in its
-  structure), :mod:`.gyro_banded` and :mod:`.gyro_normal` (normal equations linear in the
-  number of poses), :mod:`.gyro_solver`, :mod:`.gyro_observability`,
-  :mod:`.gyro_uncertainty`;
-- :mod:`.gyro_temperature` — the bias against temperature from the still poses' means
+  gravity directions (``"gravity"``); the result is a :class:`GyroFit` (:mod:`.result`).
+  Its steps: :mod:`.data` (poses, drift, segments), :mod:`.model` (residuals,
+  Jacobians), :mod:`.passes` (one pass over the intervals, a chunk at a time),
+  :mod:`.start`, :mod:`.noise` (the segments' covariance in its
+  structure), :mod:`.banded` and :mod:`.normal` (normal equations linear in the
+  number of poses), :mod:`.solver`, :mod:`.observability`,
+  :mod:`.uncertainty`;
+- :mod:`.temperature` — the bias against temperature from the still poses' means
   (:func:`with_bias_temperature`).
 
 ``docs/methods/gyro.md`` describes the method.
@@ -20,8 +20,8 @@
 from __future__ import annotations
 
 from .estimate import BIAS_NAMES, GAIN_NAMES, GyroFit, fit_gyro
-from .gyro_temperature import with_bias_temperature
 from .integrate import effective_time, integrate, rotation_vector
+from .temperature import with_bias_temperature
 
 __all__ = [
     "BIAS_NAMES",

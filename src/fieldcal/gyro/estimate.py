@@ -27,10 +27,10 @@ frame of the calibration, ``dR/dt = −[ω]× R`` with ``R`` world (NED) → bod
    :class:`~fieldcal.errors.InputError` naming them (or, with ``allow_partial=True``, held at
    the start and left out of :attr:`GyroFit.observable` and the covariance).
 
-The steps live in their own modules: :mod:`.gyro_data` (poses, drift, segments),
-:mod:`.gyro_model` (residuals, Jacobians), :mod:`.gyro_start`, :mod:`.gyro_noise` (the
-segments' covariance), :mod:`.gyro_solver`, :mod:`.gyro_observability`,
-:mod:`.gyro_uncertainty`; this module checks the input and runs them in order.
+The steps live in their own modules: :mod:`.data` (poses, drift, segments),
+:mod:`.model` (residuals, Jacobians), :mod:`.start`, :mod:`.noise` (the
+segments' covariance), :mod:`.solver`, :mod:`.observability`,
+:mod:`.uncertainty`; this module checks the input and runs them in order.
 """
 
 from __future__ import annotations
@@ -45,16 +45,16 @@ from scipy.special import chdtrc
 from ..errors import InputError
 from ..likelihood.cramer_rao import PoseCovariance
 from ..limits import power_of_two
-from .gyro_data import build_segments, check_rows, check_saturation, drift_line, pose_statistics
-from .gyro_model import Array, Method, SegmentModel
-from .gyro_noise import PoseErrors, match_chi2, pose_covariance
-from .gyro_normal import NormalSystem
-from .gyro_observability import null_space, reset_null, unobservable_message
-from .gyro_result import BIAS_NAMES, GAIN_NAMES, GyroFit
-from .gyro_solver import MIN_SEGMENTS, Rounds
-from .gyro_start import guess_matrix, start_gravity, start_rotations
-from .gyro_uncertainty import WIDEN_P, named_covariance, residual_degrees
+from .data import build_segments, check_rows, check_saturation, drift_line, pose_statistics
 from .integrate import HOLDS, Hold, effective_time
+from .model import Array, Method, SegmentModel
+from .noise import PoseErrors, match_chi2, pose_covariance
+from .normal import NormalSystem
+from .observability import null_space, reset_null, unobservable_message
+from .result import BIAS_NAMES, GAIN_NAMES, GyroFit
+from .solver import MIN_SEGMENTS, Rounds
+from .start import guess_matrix, start_gravity, start_rotations
+from .uncertainty import WIDEN_P, named_covariance, residual_degrees
 
 __all__ = ["BIAS_NAMES", "GAIN_NAMES", "GyroFit", "fit_gyro"]
 

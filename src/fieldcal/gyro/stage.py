@@ -21,8 +21,8 @@ from ..likelihood.cramer_rao import pose_rotation_factors
 from ..logs import Log, PoseSet
 from ..logs.log_temperature import pose_temperature_samples
 from .estimate import GyroFit, fit_gyro
-from .gyro_temperature import with_bias_temperature
 from .integrate import segment_turns
+from .temperature import with_bias_temperature
 
 __all__ = ["gyro_stage", "with_gyro"]
 

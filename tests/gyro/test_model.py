@@ -1,7 +1,7 @@
-"""The gyroscope model's SO(3) pieces (fieldcal.gyro.gyro_model): J_r and its inverse against
+"""The gyroscope model's SO(3) pieces (fieldcal.gyro.model): J_r and its inverse against
 their defining properties, small angles on both sides of the series' switch, the same J_r as the
 continuous estimator's, tangent bases. (The segment model's residuals and Jacobians:
-tests/gyro/test_gyro_pass.py.)"""
+tests/gyro/test_passes.py.)"""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fieldcal.geometry.rotations import exp_so3, log_so3
-from fieldcal.gyro.gyro_model import right_jacobian, right_jacobian_inv, tangent_basis
+from fieldcal.gyro.model import right_jacobian, right_jacobian_inv, tangent_basis
 from fieldcal.methods.continuous import preintegration
 
 

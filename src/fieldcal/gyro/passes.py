@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .gyro_data import Segments
+from .data import Segments
 from .integrate import SCAN_BLOCK, block_scan, matrix_columns, multiply_columns, runs, step_parts
 
 Array = NDArray[np.float64]
@@ -117,7 +117,7 @@ def chunks_of(
 
 def right_jacobian_columns(phi: Array) -> Array:
     """``J_r(φ)`` (3, 3, J) of rotation vectors (3, J) by component
-    (:func:`.gyro_model.right_jacobian`), as ``(1 − b θ²) I − a [φ]× + b φ φᵀ``
+    (:func:`.model.right_jacobian`), as ``(1 − b θ²) I − a [φ]× + b φ φᵀ``
     (``[φ]×² = φ φᵀ − θ² I``)."""
     t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
     t = np.sqrt(t2)

@@ -10,7 +10,7 @@ poses' errors, ``P_i`` each pose's own covariance, ``F`` (N, 3, G) the part the 
 integration noise. The poses' errors are carried as latent unknowns ``δ_i = S_i ξ_i + F_i ζ``
 (``S_i S_iᵀ = P_i``, ``ξ``, ``ζ`` standard normal): minimising over them gives exactly
 ``rᵀ Σ⁻¹ r``, and the normal equations in (biases, ξ; gain, ζ) are block tridiagonal over the
-poses with a border of ``9 + G`` unknowns (:class:`.gyro_banded.Arrow`)."""
+poses with a border of ``9 + G`` unknowns (:class:`.banded.Arrow`)."""
 
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ from scipy.special import chdtri
 
 from ..errors import InputError
 from ..likelihood.cramer_rao import PoseCovariance
-from .gyro_banded import Arrow
-from .gyro_model import Array, Evaluation, SegmentModel
+from .banded import Arrow
+from .model import Array, Evaluation, SegmentModel
 
 
 @dataclass

@@ -11,11 +11,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc, chdtri
 
-from .gyro_data import build_segments
-from .gyro_model import Array, SegmentModel
-from .gyro_noise import PoseErrors, SegmentNoise, prior_cost, robust_scale, segment_statistics
-from .gyro_normal import NormalSystem
+from .data import build_segments
 from .integrate import Hold
+from .model import Array, SegmentModel
+from .noise import PoseErrors, SegmentNoise, prior_cost, robust_scale, segment_statistics
+from .normal import NormalSystem
 
 #: Fewest motion segments: 3 turns (9 residuals) about independent axes for the 9 gain entries.
 MIN_SEGMENTS = 3

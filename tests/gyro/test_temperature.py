@@ -1,5 +1,5 @@
 """The gyroscope's bias against temperature from the still poses' means
-(:mod:`fieldcal.gyro.gyro_temperature`): the coefficients within their error bars, the order
+(:mod:`fieldcal.gyro.temperature`): the coefficients within their error bars, the order
 chosen by the data within the span rule, refused under 5 K, and on a warm-up log through
 :func:`fieldcal.calibrate_log` (``cal.gyro.temperature``, ``cal.correct_gyro(raw,
 temperature=...)``)."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import fieldcal
-from fieldcal.gyro.gyro_temperature import fit_bias_temperature
+from fieldcal.gyro.temperature import fit_bias_temperature
 from fieldcal.likelihood.temperature import MIN_SPAN_K
 from fieldcal.simulation.warmup import simulate_warmup_log
 

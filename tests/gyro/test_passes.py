@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from fieldcal.geometry.rotations import exp_so3
-from fieldcal.gyro.gyro_data import build_segments, check_rows, pose_statistics
-from fieldcal.gyro.gyro_model import SegmentModel, right_jacobian
-from fieldcal.gyro.gyro_pass import (
+from fieldcal.gyro.data import build_segments, check_rows, pose_statistics
+from fieldcal.gyro.integrate import step_parts
+from fieldcal.gyro.model import SegmentModel, right_jacobian
+from fieldcal.gyro.passes import (
     JACOBIAN,
     NOISE,
     TURNS,
@@ -20,7 +21,6 @@ from fieldcal.gyro.gyro_pass import (
     right_jacobian_columns,
     step_right_jacobian,
 )
-from fieldcal.gyro.integrate import step_parts
 from fieldcal.simulation.continuous import simulate_continuous
 
 # round-off of a few hundred composed steps, far below any statistical scale of the fit

@@ -11,12 +11,12 @@ import pytest
 
 import fieldcal
 from fieldcal.gyro import fit_gyro
-from fieldcal.gyro.gyro_banded import Arrow
-from fieldcal.gyro.gyro_data import build_segments, check_rows, pose_statistics
-from fieldcal.gyro.gyro_model import SegmentModel
-from fieldcal.gyro.gyro_noise import PoseErrors, SegmentNoise
-from fieldcal.gyro.gyro_normal import NormalSystem
+from fieldcal.gyro.banded import Arrow
+from fieldcal.gyro.data import build_segments, check_rows, pose_statistics
 from fieldcal.gyro.integrate import cumulative_quaternions, quaternion_multiply
+from fieldcal.gyro.model import SegmentModel
+from fieldcal.gyro.noise import PoseErrors, SegmentNoise
+from fieldcal.gyro.normal import NormalSystem
 from fieldcal.likelihood.cramer_rao import pose_rotation_covariance, pose_rotation_factors
 from fieldcal.simulation.continuous import simulate_continuous
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fieldcal.gyro.gyro_data import build_segments, check_rows, pose_statistics
+from fieldcal.gyro.data import build_segments, check_rows, pose_statistics
 from fieldcal.simulation.continuous import simulate_continuous
 
 

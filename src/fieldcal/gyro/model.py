@@ -11,9 +11,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.rotations import hat
-from .gyro_data import Segments
-from .gyro_pass import JACOBIAN, NOISE, TURNS, Integrator, Pass
+from .data import Segments
 from .integrate import rotation_vector
+from .passes import JACOBIAN, NOISE, TURNS, Integrator, Pass
 
 Array = NDArray[np.float64]
 Method = Literal["rotations", "gravity"]
@@ -124,7 +124,7 @@ class SegmentModel:
     def evaluate(self, x: Array, *, with_jacobian: bool = True, linear: bool = False) -> Evaluation:
         """Residuals and Jacobians at ``x``; ``linear``: the rotation residual's Jacobian as at
         a zero residual (for the observability check far from the optimum). One pass over the
-        intervals (:class:`.gyro_pass.Integrator`, which keeps the last few); the last
+        intervals (:class:`.passes.Integrator`, which keeps the last few); the last
         evaluation is kept (the solver asks for the same point more than once)."""
         cached = self._cached(x, linear, with_jacobian)
         if cached is not None:

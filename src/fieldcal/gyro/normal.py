@@ -3,15 +3,15 @@ cost, its gradient, the diagonal of the information (Levenberg-Marquardt's dampi
 damped step, the gain's information with the biases eliminated and the covariance of linear
 functions of the parameters — each equal to the dense ``Jᵀ Σ⁻¹ J`` computation, never forming
 it (``x = (gain coordinates, b_0, …, b_{N−1})``; the poses' errors are latent unknowns,
-:mod:`.gyro_noise`)."""
+:mod:`.noise`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .gyro_banded import Arrow
-from .gyro_model import Array, Evaluation
-from .gyro_noise import SegmentNoise
+from .banded import Arrow
+from .model import Array, Evaluation
+from .noise import SegmentNoise
 
 
 def _tt(X: Array, Y: Array) -> Array:

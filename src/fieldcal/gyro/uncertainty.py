@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..calibration import ParameterCovariance
-from .gyro_model import Array
-from .gyro_normal import NormalSystem
-from .gyro_result import BIAS_NAMES, GAIN_NAMES
+from .model import Array
+from .normal import NormalSystem
+from .result import BIAS_NAMES, GAIN_NAMES
 
 #: The segments' χ² test level below which the covariance is widened by χ²/dof.
 WIDEN_P = 0.05

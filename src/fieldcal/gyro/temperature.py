@@ -6,10 +6,10 @@ each still pose's mean rate ``p_i`` observes ``b(T_i)`` directly:
     p_i = b + Σ_{k=1..K} c_k (T_i − T_ref)^k + e_i,   e_i ~ N(0, Q/T_i + v I)
 
 (``Q`` the rate noise density, ``T_i`` here the pose's duration, ``v`` the poses' bias wander:
-the prior of :func:`fieldcal.gyro.gyro_data.drift_line`). ``b`` and the ``c_k`` follow by
+the prior of :func:`fieldcal.gyro.data.drift_line`). ``b`` and the ``c_k`` follow by
 generalised least squares; their covariance is the inverse information, widened by ``χ²/ν``
 when the poses' χ² rejects the model at 5 % (as the segments' is,
-:data:`fieldcal.gyro.gyro_uncertainty.WIDEN_P`). The order is chosen as for the other sensors
+:data:`fieldcal.gyro.uncertainty.WIDEN_P`). The order is chosen as for the other sensors
 (:mod:`fieldcal.likelihood.temperature`): the span rule (order ``k`` needs ``5k`` K and ``k + 2``
 distinct pose temperatures; under 5 K the terms are refused) and the forward F-test at 1 %,
 ``F = ((J_{k−1} − J_k)/3) / (J_k/ν_k)``, ``ν_k = 3(N − k − 1)``.
@@ -29,8 +29,8 @@ from ..errors import InputError
 from ..likelihood.temperature import ALPHA, MIN_SPAN_K, allowed_order, refusal
 from ..stats.pose_temperature import PoseTemperature
 from ..thermal import TemperatureModel, temperature_names
-from .gyro_result import BIAS_NAMES, GyroFit
-from .gyro_uncertainty import WIDEN_P
+from .result import BIAS_NAMES, GyroFit
+from .uncertainty import WIDEN_P
 
 __all__ = ["BiasTemperature", "fit_bias_temperature", "with_bias_temperature"]
 

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from .gyro_model import Array
-from .gyro_result import GAIN_NAMES
+from .model import Array
+from .result import GAIN_NAMES
 
 #: A combination of the gain's entries whose standard error exceeds this fraction of the gain's
 #: size (``|K|_F/√3``) is not determined by the turns (refused, or left out with

@@ -10,9 +10,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InputError
-from .gyro_data import Segments, segment_sums
-from .gyro_model import Array, SegmentModel
+from .data import Segments, segment_sums
 from .integrate import rotation_vector
+from .model import Array, SegmentModel
 
 
 def guess_matrix(gain_guess: float | ArrayLike | None, unit: float) -> Array | None:
