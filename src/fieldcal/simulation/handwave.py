@@ -25,6 +25,7 @@ moved into that frame.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -208,23 +209,8 @@ def simulate_handwave(
     t = np.arange(n) / rate
     fine = np.arange((n - 1) * _FINE + 1) / (rate * _FINE)
     # drawn sensors
-    p = MEMS_FIELD
-    Ka = np.eye(3) + rng.uniform(-p["accel_gain"], p["accel_gain"], (3, 3))
-    ba = rng.uniform(-p["accel_bias"], p["accel_bias"], 3) * gravity
-    Km = np.eye(3) + rng.uniform(-p["mag_gain"], p["mag_gain"], (3, 3))
-    bm = rng.uniform(-p["mag_bias"], p["mag_bias"], 3) * field_strength
-    dip = np.radians(rng.uniform(*dip_deg))
-    sa = p["accel_noise"] * np.sqrt(rate / 100.0) * noise_scale * gravity
-    sm = p["mag_noise"] * np.sqrt(rate / 100.0) * noise_scale * field_strength
-    scale = rng.uniform(-MEMS["scale"], MEMS["scale"], 3)
-    cross = rng.uniform(-MEMS["cross_axis"], MEMS["cross_axis"], (3, 3))
-    np.fill_diagonal(cross, 0.0)
-    mis = rng.uniform(-MEMS["misalignment"], MEMS["misalignment"], 3)
-    Kg = (np.eye(3) + np.diag(scale) + cross) @ exp_so3(mis)
-    bg = rng.uniform(-MEMS["bias"], MEMS["bias"], 3)
-    sg = (MEMS_NOISE_100HZ * np.sqrt(rate / 100.0) if gyro_noise is None else gyro_noise) * (
-        noise_scale if gyro_noise is None else 1.0
-    )
+    d = _draw_sensors(rng, rate, gravity, field_strength, dip_deg, noise_scale, gyro_noise)
+    Ka, ba, Km, bm, dip, sa, sm, Kg, bg, sg = d
     # the motion
     stretches: list[tuple[float, float]] = []
     if rests > 0:
@@ -257,25 +243,8 @@ def simulate_handwave(
             columns[f"{prefix}{axis}"] = column
     if temp is not None:
         columns["temp"] = temp
-    # the truth in fieldcal's gauge
-    Rc, Ka_c, Km_c, g_c, h_c = canonical_gauge(R, Ka, Km, g_world, h_world)
-    U = orthogonal_polar_factor(Ka)  # ω_gauge = U ω_drawn
-    truth = Calibration(
-        accel=SensorCalibration(
-            gain=Ka_c, bias=ba, noise_cov=sa**2 * np.eye(3), temperature=models.get("accel")
-        ),
-        mag=SensorCalibration(
-            gain=Km_c, bias=bm, noise_cov=sm**2 * np.eye(3), temperature=models.get("mag")
-        ),
-        gravity=g_c,
-        magnetic=h_c,
-        rotations=Rc,
-        method="truth",
-        gyro=SensorCalibration(
-            gain=Kg @ U.T, bias=bg, noise_cov=sg**2 * np.eye(3), temperature=models.get("gyro")
-        ),
-        options={"seed": seed, "seconds": seconds, "rate": rate, "shake": shake},
-    )
+    provenance = {"seed": seed, "seconds": seconds, "rate": rate, "shake": shake}
+    truth = _truth(d, R, g_world, h_world, models, provenance)
     still = env < 1e-9
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
     rest_rows = tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
@@ -290,4 +259,82 @@ def simulate_handwave(
         gravity=float(gravity),
         field_strength=float(field_strength),
         options={"turn_rate": turn_rate, "rests": rests, "axes": tuple(axes)},
+    )
+
+
+class _Drawn(NamedTuple):
+    """A drawn device: each sensor's gain, bias and noise (std), and the dip (radians)."""
+
+    Ka: Array
+    ba: Array
+    Km: Array
+    bm: Array
+    dip: float
+    sa: float
+    sm: float
+    Kg: Array
+    bg: Array
+    sg: float
+
+
+def _draw_sensors(
+    rng: np.random.Generator,
+    rate: float,
+    gravity: float,
+    field_strength: float,
+    dip_deg: tuple[float, float],
+    noise_scale: float,
+    gyro_noise: float | None,
+) -> _Drawn:
+    """The MEMS device of a hand-waved log (``MEMS_FIELD``, ``MEMS``), drawn in this order."""
+    p = MEMS_FIELD
+    Ka = np.eye(3) + rng.uniform(-p["accel_gain"], p["accel_gain"], (3, 3))
+    ba = rng.uniform(-p["accel_bias"], p["accel_bias"], 3) * gravity
+    Km = np.eye(3) + rng.uniform(-p["mag_gain"], p["mag_gain"], (3, 3))
+    bm = rng.uniform(-p["mag_bias"], p["mag_bias"], 3) * field_strength
+    dip = float(np.radians(rng.uniform(*dip_deg)))
+    sa = p["accel_noise"] * np.sqrt(rate / 100.0) * noise_scale * gravity
+    sm = p["mag_noise"] * np.sqrt(rate / 100.0) * noise_scale * field_strength
+    scale = rng.uniform(-MEMS["scale"], MEMS["scale"], 3)
+    cross = rng.uniform(-MEMS["cross_axis"], MEMS["cross_axis"], (3, 3))
+    np.fill_diagonal(cross, 0.0)
+    mis = rng.uniform(-MEMS["misalignment"], MEMS["misalignment"], 3)
+    Kg = (np.eye(3) + np.diag(scale) + cross) @ exp_so3(mis)
+    bg = rng.uniform(-MEMS["bias"], MEMS["bias"], 3)
+    sg = (MEMS_NOISE_100HZ * np.sqrt(rate / 100.0) if gyro_noise is None else gyro_noise) * (
+        noise_scale if gyro_noise is None else 1.0
+    )
+    return _Drawn(Ka, ba, Km, bm, dip, float(sa), float(sm), Kg, bg, float(sg))
+
+
+def _truth(
+    d: _Drawn,
+    R: Array,
+    g_world: Array,
+    h_world: Array,
+    models: dict[str, TemperatureModel],
+    options: dict[str, Any],
+) -> Calibration:
+    """The drawn device in fieldcal's gauge (:func:`fieldcal.geometry.gauge.canonical_gauge`):
+    what a calibration of the log should find."""
+    Rc, Ka_c, Km_c, g_c, h_c = canonical_gauge(R, d.Ka, d.Km, g_world, h_world)
+    U = orthogonal_polar_factor(d.Ka)  # ω_gauge = U ω_drawn
+    return Calibration(
+        accel=SensorCalibration(
+            gain=Ka_c, bias=d.ba, noise_cov=d.sa**2 * np.eye(3), temperature=models.get("accel")
+        ),
+        mag=SensorCalibration(
+            gain=Km_c, bias=d.bm, noise_cov=d.sm**2 * np.eye(3), temperature=models.get("mag")
+        ),
+        gravity=g_c,
+        magnetic=h_c,
+        rotations=Rc,
+        method="truth",
+        gyro=SensorCalibration(
+            gain=d.Kg @ U.T,
+            bias=d.bg,
+            noise_cov=d.sg**2 * np.eye(3),
+            temperature=models.get("gyro"),
+        ),
+        options=options,
     )
