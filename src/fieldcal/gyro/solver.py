@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc, chdtri
 
+from ..likelihood.marquardt import Schedule, minimise
 from .data import build_segments
 from .integrate import Hold
 from .model import Array, SegmentModel
@@ -30,6 +31,84 @@ REJECT_ALPHA = 0.01
 PRESCREEN_ALPHA = 1e-4
 
 
+class _Segments:
+    """The segments' problem for the shared loop (:func:`fieldcal.likelihood.marquardt.
+    minimise`): a point is the parameter vector; its linearisation the normal system with its
+    gradient and diagonal."""
+
+    def __init__(
+        self,
+        model: SegmentModel,
+        noise: SegmentNoise,
+        prior_inv: Array,
+        p: Array,
+        basis: Array | None,
+    ) -> None:
+        self.model, self.noise, self.prior_inv, self.p, self.basis = (
+            model,
+            noise,
+            prior_inv,
+            p,
+            basis,
+        )
+
+    def linearise(self, x: Array) -> tuple[Array, NormalSystem, Array, Array]:
+        ne = NormalSystem(self.noise, self.model.evaluate(x), x, self.p, self.prior_inv, self.basis)
+        return x, ne, ne.gradient(), ne.diagonal()
+
+    def propose(
+        self, linear: tuple[Array, NormalSystem, Array, Array], lam: float
+    ) -> tuple[Array, float]:
+        x, ne, g, diag = linear
+        step = ne.step(lam * np.maximum(diag, 1e-12))
+        basis = self.basis
+        full = (
+            step
+            if basis is None
+            else np.concatenate([basis @ step[: basis.shape[1]], step[basis.shape[1] :]])
+        )
+        return x + full, float(-(step @ g))
+
+    def level(self, linear: tuple[Array, NormalSystem, Array, Array]) -> float | None:
+        return None
+
+    def cost(self, y: Array) -> float:
+        try:
+            c = self.noise.quadratic(self.model.residuals(y)) + prior_cost(
+                self.prior_inv, y[9:].reshape(-1, 3), self.p
+            )
+        except (FloatingPointError, np.linalg.LinAlgError):
+            return math.inf
+        return c if math.isfinite(c) else math.inf
+
+
+class _Tenfold(Schedule):
+    """The gyroscope's rules: an iteration is a linearisation, its refused trials raise λ
+    tenfold (beyond 1e12 no descent is left: the minimum, to round-off); a step is taken when it
+    lowers J, λ shrinks threefold after a good one (ρ > 0.75), and the loop stops when J moved
+    by less than 1e-6 relative — J is a χ² variate of size ~dof, so that means nothing
+    statistically."""
+
+    count_trials = False
+
+    def __init__(self) -> None:
+        super().__init__(1e-3)
+
+    def ratio(self, gain: float, predicted: float) -> float:
+        return gain / max(predicted, 1e-300)
+
+    def accepts(self, gain: float, rho: float, new: float, cost: float) -> bool:
+        return new < cost
+
+    def accepted(self, gain: float, rho: float, cost: float) -> bool:
+        self.lam = max(self.lam * (1.0 / 3.0 if rho > 0.75 else 1.0), 1e-12)
+        return gain <= 1e-6 * (1.0 + cost)
+
+    def refused(self, predicted: float, cost: float) -> bool | None:
+        self.lam *= 10.0
+        return True if self.lam > 1e12 else None
+
+
 def gauss_newton(
     model: SegmentModel,
     noise: SegmentNoise,
@@ -41,48 +120,10 @@ def gauss_newton(
 ) -> tuple[Array, float, int, bool]:
     """Levenberg-Marquardt on the whitened residuals (the segments' covariance ``noise`` fixed,
     the biases' priors ``prior_inv``); ``basis`` (9, r) restricts the gain's step to the
-    determined directions (``None``: all)."""
-
-    def cost_at(y: Array) -> float:
-        try:
-            c = noise.quadratic(model.residuals(y)) + prior_cost(prior_inv, y[9:].reshape(-1, 3), p)
-        except (FloatingPointError, np.linalg.LinAlgError):
-            return math.inf
-        return c if math.isfinite(c) else math.inf
-
-    lam = 1e-3
-    it = 0
-    converged = False
-    cost = cost_at(x)
-    while it < max_iter:
-        it += 1
-        ne = NormalSystem(noise, model.evaluate(x), x, p, prior_inv, basis)
-        g = ne.gradient()
-        diag = ne.diagonal()
-        while True:
-            step = ne.step(lam * np.maximum(diag, 1e-12))
-            full = (
-                step
-                if basis is None
-                else np.concatenate([basis @ step[: basis.shape[1]], step[basis.shape[1] :]])
-            )
-            trial = x + full
-            new = cost_at(trial)
-            if new < cost:
-                pred = float(-(step @ g))
-                rho = (cost - new) / max(pred, 1e-300)
-                x, gain = trial, cost - new
-                cost = new
-                lam = max(lam * (1.0 / 3.0 if rho > 0.75 else 1.0), 1e-12)
-                break
-            lam *= 10.0
-            if lam > 1e12:
-                return x, cost, it, True  # no descent left: at the minimum to round-off
-        # J is a χ² variate of size ~dof: a change of 1e-6 in it means nothing statistically
-        if gain <= 1e-6 * (1.0 + cost):
-            converged = True
-            break
-    return x, cost, it, converged
+    determined directions (``None``: all). The shared loop with the rules of :class:`_Tenfold`."""
+    problem = _Segments(model, noise, prior_inv, p, basis)
+    out = minimise(problem, x, problem.cost(x), _Tenfold(), max_iter)
+    return out.point, out.cost, out.iterations, out.converged
 
 
 def stages(path: Array) -> list[NDArray[np.int64]]:

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgesv as _dgesv
 
+from .marquardt import Schedule, minimise
 from .pose_model import (
     Problem,
     State,
@@ -282,6 +283,82 @@ def levenberg_marquardt(
     return solve_alone(problem, state, max_iter, tol, lam, known_minimum)
 
 
+@dataclass
+class _Point:
+    """A state with the rotated fields and residuals its cost was computed from."""
+
+    state: State
+    VV: Array | None = None
+    e: Array | None = None
+
+
+class _Reduced:
+    """The pose problem for the shared loop (:func:`.marquardt.minimise`): the Gauss–Newton
+    system with the poses eliminated (:func:`solve_step`)."""
+
+    def __init__(self, problem: Problem) -> None:
+        self.problem = problem
+
+    def linearise(self, point: _Point) -> tuple[_Point, Normal]:
+        assert point.e is not None and point.VV is not None  # its cost was computed
+        return point, normal_equations(self.problem, point.state, point.e, point.VV)
+
+    def level(self, linear: tuple[_Point, Normal]) -> float | None:
+        return None
+
+    def propose(self, linear: tuple[_Point, Normal], lam: float) -> tuple[_Point, float] | None:
+        point, ne = linear
+        dg, dp, pred = solve_step(ne, lam)
+        # a NaN or inf in the step reaches the predicted decrease (its damping terms are sums
+        # of positive weights times squares), so one scalar test stands for both arrays
+        if not math.isfinite(pred) and not (np.isfinite(dg).all() and np.isfinite(dp).all()):
+            return None
+        return _Point(apply_step(self.problem, point.state, dg, dp, ne.basis)), pred
+
+    def cost(self, point: _Point) -> float:
+        point.VV = rotated_fields(self.problem, point.state)  # R_i f_s: residuals', Jacobian's
+        point.e = residuals(self.problem, point.state, point.VV)
+        return _cost(point.e)
+
+
+class Nielsen(Schedule):
+    """The pose methods' rules (Nielsen's damping): λ scaled by ``max(1/3, 1 − (2ρ − 1)³)``
+    after a step taken, by a doubling factor after a refusal (beyond 1e16: given up). Stops
+    when a step lowers J by less than ``tol·(1 + J)``, or by less than 1e-8 J with the linear
+    model predicting the decrease to 10 % (Gauss–Newton's quadratic regime: the next step would
+    change J by far less than anything statistically meaningful, J being a χ² variate of size
+    ~dof), or when a refused step's prediction is below ``1e-3 tol (1 + J)`` at small λ.
+    ``known_minimum``: the J of a minimum already found from another start; once in the
+    quadratic regime with the linear model predicting that very value, this start is heading
+    for it and is abandoned."""
+
+    def __init__(self, lam: float, tol: float, known_minimum: float | None) -> None:
+        super().__init__(lam)
+        self.nu, self.tol, self.known, self.last_rho = 2.0, tol, known_minimum, 0.0
+
+    def done_before_trying(self, cost: float, predicted: float) -> bool:
+        known = self.known
+        return (
+            known is not None
+            and abs(self.last_rho - 1.0) < 0.1
+            and abs(cost - predicted - known) <= 1e-6 * (1.0 + known)
+        )
+
+    def accepted(self, gain: float, rho: float, cost: float) -> bool:
+        self.last_rho = rho
+        self.lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+        self.nu = 2.0
+        quadratic = abs(rho - 1.0) < 0.1 and gain <= 1e-8 * cost
+        return gain <= self.tol * (1.0 + cost) or quadratic or cost < 1e-300
+
+    def refused(self, predicted: float, cost: float) -> bool | None:
+        if predicted <= self.tol * 1e-3 * (1.0 + cost) and self.lam < 1e-3:
+            return True  # the model predicts nothing left to gain
+        self.lam *= self.nu
+        self.nu *= 2.0
+        return False if self.lam > 1e16 else None
+
+
 def solve_alone(
     problem: Problem,
     state: State,
@@ -290,54 +367,11 @@ def solve_alone(
     lam: float = 1e-4,
     known_minimum: float | None = None,
 ) -> Result:
-    """:func:`levenberg_marquardt` in this thread, whatever service is set."""
-    VV = rotated_fields(problem, state)  # R_i f_s: the residuals' and the Jacobian's
-    e = residuals(problem, state, VV)
-    cost = _cost(e)
-    nu = 2.0
-    converged = False
-    it = 0
-    ne = normal_equations(problem, state, e, VV)
-    last_rho = 0.0
-    while it < max_iter:
-        it += 1
-        dg, dp, pred = solve_step(ne, lam)
-        if (
-            known_minimum is not None
-            and abs(last_rho - 1.0) < 0.1
-            and abs(cost - pred - known_minimum) <= 1e-6 * (1.0 + known_minimum)
-        ):
-            converged = True
-            break
-        # a NaN or inf in the step reaches the predicted decrease (its damping terms are sums
-        # of positive weights times squares), so one scalar test stands for both arrays
-        if not math.isfinite(pred) and not (np.isfinite(dg).all() and np.isfinite(dp).all()):
-            lam *= 10.0
-            continue
-        trial = apply_step(problem, state, dg, dp, ne.basis)
-        VV_new = rotated_fields(problem, trial)
-        e_new = residuals(problem, trial, VV_new)
-        cost_new = _cost(e_new)
-        gain = cost - cost_new
-        rho = gain / pred if pred > 0 else -1.0
-        if rho > 0 and np.isfinite(cost_new):
-            state, e, VV, last_rho = trial, e_new, VV_new, rho
-            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            cost = cost_new
-            # In Gauss-Newton's quadratic regime (ρ ≈ 1) the next step would gain about
-            # (gain/J)² relative: stop now instead of paying for one more linearisation.
-            quadratic = abs(rho - 1.0) < 0.1 and gain <= 1e-8 * cost
-            if gain <= tol * (1.0 + cost) or quadratic or cost < 1e-300:
-                converged = True
-                break
-            ne = normal_equations(problem, state, e, VV)
-        else:
-            if pred <= tol * 1e-3 * (1.0 + cost) and lam < 1e-3:
-                converged = True  # the model predicts nothing left to gain
-                break
-            lam *= nu
-            nu *= 2.0
-            if lam > 1e16:
-                break
-    return Result(state, e, cost, it, converged)
+    """:func:`levenberg_marquardt` in this thread, whatever service is set: the shared loop
+    (:func:`.marquardt.minimise`) with the rules of :class:`Nielsen`."""
+    reduced = _Reduced(problem)
+    start = _Point(state)
+    cost = reduced.cost(start)
+    out = minimise(reduced, start, cost, Nielsen(lam, tol, known_minimum), max_iter)
+    assert out.point.e is not None
+    return Result(out.point.state, out.point.e, out.cost, out.iterations, out.converged)

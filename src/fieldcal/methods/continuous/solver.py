@@ -17,6 +17,7 @@ other parameters.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cholesky_banded
 from scipy.linalg.lapack import dtbtrs
 
+from ...likelihood.marquardt import Schedule, minimise
 from .model import Data, State, accel_block, columns, mag_block
 from .preintegration import GyroFactors, thermal_factors
 
@@ -252,6 +254,54 @@ def _step(normal: Normal, damping: float) -> tuple[Array, Array]:
     return dp, x[:, 0].reshape(-1, 3)
 
 
+class _Trajectory:
+    """The continuous problem for the shared loop (:func:`fieldcal.likelihood.marquardt.
+    minimise`): a point is a :class:`State`; its linearisation the banded normal equations."""
+
+    def __init__(self, data: Data, w: Weights) -> None:
+        self.data, self.w = data, w
+
+    def linearise(self, state: State) -> tuple[State, Normal]:
+        return state, normal_equations(state, self.data, self.w)
+
+    def level(self, linear: tuple[State, Normal]) -> float | None:
+        """The cost as the normal equations summed it (the one a trial is compared with)."""
+        return linear[1].cost
+
+    def propose(self, linear: tuple[State, Normal], lam: float) -> tuple[State, float] | None:
+        state, normal = linear
+        try:
+            dp, dt = _step(normal, lam)
+        except np.linalg.LinAlgError:
+            return None
+        return state.updated(dp, dt), math.nan
+
+    def cost(self, state: State) -> float:
+        return cost(state, self.data, self.w)
+
+
+class _Fivefold(Schedule):
+    """The continuous estimator's rules: a step is taken when it does not raise the cost, λ
+    shrinks fivefold after it (down to 1e-9) and grows tenfold after a refusal (beyond 1e8 no
+    further decrease is possible); the loop stops when a step lowered the cost by at most
+    ``tol`` (absolute: half a χ²)."""
+
+    def __init__(self, tol: float) -> None:
+        super().__init__(1e-8)
+        self.tol = tol
+
+    def accepts(self, gain: float, rho: float, new: float, cost: float) -> bool:
+        return bool(np.isfinite(new) and new <= cost)
+
+    def accepted(self, gain: float, rho: float, cost: float) -> bool:
+        self.lam = max(self.lam / 5.0, 1e-9)
+        return gain <= self.tol
+
+    def refused(self, predicted: float, cost: float) -> bool | None:
+        self.lam *= 10.0
+        return True if self.lam > 1e8 else None
+
+
 def levenberg_marquardt(
     state: State, data: Data, w: Weights, *, max_iter: int = 50, tol: float = 1e-3
 ) -> tuple[State, int, bool]:
@@ -260,26 +310,7 @@ def levenberg_marquardt(
 
     ``tol`` is absolute, in units of the cost (half a χ²): a step that lowers it by ``tol``
     moves the estimate by about ``sqrt(2 tol)`` standard errors (Mahalanobis), so the default
-    stops when the steps are a twentieth of the error bars or less."""
-    damping = 1e-8
-    normal = normal_equations(state, data, w)
-    for it in range(1, max_iter + 1):
-        try:
-            dp, dt = _step(normal, damping)
-        except np.linalg.LinAlgError:
-            damping *= 10.0
-            continue
-        trial = state.updated(dp, dt)
-        new = cost(trial, data, w)
-        if np.isfinite(new) and new <= normal.cost:
-            decrease = normal.cost - new
-            state = trial
-            normal = normal_equations(state, data, w)
-            damping = max(damping / 5.0, 1e-9)
-            if decrease <= tol:
-                return state, it, True
-        else:
-            damping *= 10.0
-            if damping > 1e8:
-                return state, it, True  # no further decrease is possible
-    return state, max_iter, False
+    stops when the steps are a twentieth of the error bars or less. The shared loop
+    (:func:`fieldcal.likelihood.marquardt.minimise`) with the rules of :class:`_Fivefold`."""
+    out = minimise(_Trajectory(data, w), state, math.nan, _Fivefold(tol), max_iter)
+    return out.point, out.iterations, out.converged
