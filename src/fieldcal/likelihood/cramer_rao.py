@@ -17,11 +17,11 @@ from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg.lapack import dgesv as _dgesv
 
 from ..calibration import Calibration, ParameterCovariance
 from ..stats.pose_stats import PoseStats, SensorStats
 from ..thermal import temperature_names
+from .information import jacobi_scaled, scaled_inverse
 from .levenberg import Normal, normal_equations, reduce
 from .pose_model import SYM_MAP, Problem, State, build_problem, residuals
 
@@ -107,28 +107,13 @@ def global_covariance(ne: Normal) -> tuple[Array, Array, Array, float]:
 def _covariance(ne: Normal) -> tuple[Array, Array, Array, Array]:
     """:func:`global_covariance` with the Jacobi-scaled S in place of its condition number."""
     Uinv, Y, S, _, _ = reduce(ne, 0.0)
-    d = np.sqrt(np.maximum(np.diag(S), 1e-300))
-    scale = d[:, None] * d  # np.outer's numbers, without its wrapper
-    Sn = S / scale
-    # np.linalg.inv is LAPACK's gesv against the identity: called directly (its wrapper costs
-    # more than the 22x22 solve); a singular S raises as np.linalg.inv does
-    _, _, inverse, info = _dgesv(Sn, _identity(len(Sn)))
-    if info > 0:
-        raise np.linalg.LinAlgError("Singular matrix")
-    C = inverse / scale
-    return 0.5 * (C + C.T), Uinv, Y, Sn
+    Sn, _ = jacobi_scaled(S)
+    return scaled_inverse(S), Uinv, Y, Sn
 
 
 def _condition(Sn: Array) -> float:
     ev = np.linalg.eigvalsh(Sn)
     return float(ev[-1] / max(ev[0], 1e-300))
-
-
-@functools.cache
-def _identity(n: int) -> Array:
-    eye = np.eye(n)
-    eye.setflags(write=False)
-    return eye
 
 
 #: names and the map of :func:`named_map` (the type built once: it is checked per call)

@@ -35,6 +35,8 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dtbtrs
 
 from ...calibration import ParameterCovariance
+from ...likelihood.information import sandwich as sandwich_form
+from ...likelihood.information import scaled_inverse
 from ...thermal import temperature_names
 from .model import (
     N_PARAMS,
@@ -113,9 +115,8 @@ def information(state: State, data: Data, w: Weights) -> Array:
 
 
 def _invert(S: Array) -> Array:
-    scale = np.sqrt(np.maximum(np.diag(S), 1e-300))
-    inv: Array = np.linalg.pinv(S / np.outer(scale, scale), rcond=1e-13) / np.outer(scale, scale)
-    return inv
+    """The information's pseudo-inverse (a prior may hold directions the data leave free)."""
+    return scaled_inverse(S, pseudo=True)
 
 
 def _named(C: Array, extra: tuple[str, ...] = ()) -> ParameterCovariance:
@@ -327,7 +328,7 @@ def sandwich(
     omega = long_run(psi, batch)
     share = attenuation(jac, data_w, normal, S, W, X, batch)
     Sinv = _invert(S)
-    C = Sinv @ omega @ Sinv
+    C = sandwich_form(Sinv, omega)
     C /= np.sqrt(np.outer(share, share))
     if w.prior is not None:
         m = len(w.prior.precision)
