@@ -44,7 +44,7 @@ def test_a_manifests_rows(tmp_path):
         "s3://bucket/c.csv",
     ]
     assert [s.device for s in specs] == ["BOARD-1", None, "BOARD-3"]
-    assert specs[0].options == {"method": "ellipsoid", "robust": False, "trim": False}
+    assert specs[0].options == {"method": "ellipsoid", "robust": False, "cut_unsteady": False}
     assert specs[1].options == {} and specs[0].source == f"{manifest} row 3"  # physical lines
 
 
