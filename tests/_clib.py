@@ -43,6 +43,7 @@ class Monitor(ctypes.Structure):
         ("dip_deg", ctypes.c_float),
         ("blocks", ctypes.c_uint32),
         ("alarms", ctypes.c_uint32),
+        ("rejected", ctypes.c_uint32),
     ]
 
 
@@ -53,6 +54,8 @@ class HardIron(ctypes.Structure):
         ("last_d", ctypes.c_float * 3),
         ("last_m", ctypes.c_float * 3),
         ("updates", ctypes.c_uint32),
+        ("rejected", ctypes.c_uint32),
+        ("field_norm", ctypes.c_float),
     ]
 
 

@@ -96,6 +96,16 @@ _VERSION = 1
 VERSION_TEMPERATURE = 2
 N_FLOATS_TEMPERATURE = N_FLOATS + 36
 _FLAGS = {"accel": 1, "mag": 2, "gyro": 4, "declination": 8, "monitor": 16, "temperature": 32}
+#: The bounds ``fieldcal_check`` applies (``FIELDCAL_*`` in the header; docs/microcontroller.md).
+MATRIX_RANGE = (1e-12, 1e12)
+CONDITION_MAX = 1e4
+BIAS_MAX = 1e6
+NORM_RANGE = (1e-9, 1e9)
+VAR_MIN = 1e-14
+#: The floor the export gives the monitor's per-sample variances and the hard iron's (times
+#: ``F²`` for the norm and the hard iron, rad² for the dip): float32 resolves no finer, and a
+#: zero variance is one ``fieldcal_check`` refuses.
+VAR_FLOOR = 1e-12
 #: The float fields of ``fieldcal_cal_t`` in blob order, with their lengths.
 _LAYOUT = (
     ("accel_matrix", 9),
@@ -124,6 +134,53 @@ _TEMPERATURE_LAYOUT = (("accel_temp", 12), ("mag_temp", 12), ("gyro_temp", 12))
 def _layout(cal: Calibration) -> tuple[tuple[str, int], ...]:
     """The float fields of this calibration's ``fieldcal_cal_t``, in blob order."""
     return _LAYOUT + (_TEMPERATURE_LAYOUT if temperature_terms(cal) else ())
+
+
+def _known_flags(thermal: bool) -> int:
+    """``FIELDCAL_KNOWN_FLAGS``: every flag this library's calibration may carry."""
+    return sum(v for k, v in _FLAGS.items() if thermal or k != "temperature")
+
+
+def _hard_iron_prior(cov: Array, F: float) -> Array:
+    """The prior as ``fieldcal_check`` accepts it: symmetric (bit for bit), each variance within
+    ``[VAR_FLOOR F², F²]`` (a hard iron uncertain by more than the field says nothing more),
+    positive-definite with a margin (else its correlations are dropped, as the device does)."""
+    var = np.diag(cov)
+    std = np.sqrt(np.clip(var, VAR_FLOOR * F**2, F**2))
+    corr = np.eye(3)
+    if np.all(var > 0):
+        corr = 0.5 * (cov + cov.T) / np.sqrt(np.outer(var, var))
+        np.fill_diagonal(corr, 1.0)
+        if np.abs(corr - np.eye(3)).max() >= 1.0 - 1e-6 or np.linalg.det(corr) < 1e-5:
+            corr = np.eye(3)
+    upper = np.triu(corr * np.outer(std, std))
+    return np.asarray(upper + np.triu(upper, 1).T, dtype=float)
+
+
+def _plausible(flags: int, fields: dict[str, Array]) -> None:
+    """Refuse what ``fieldcal_check`` would refuse on the device (the same rules, in float64 on
+    the float32 values): an export the device cannot load is an error here, not a silent
+    fallback to nothing there."""
+    for name in ("accel", "mag", "gyro"):
+        if not flags & _FLAGS[name]:
+            continue
+        M = fields[f"{name}_matrix"].astype(np.float32).astype(float).reshape(3, 3)
+        largest = float(np.abs(M).max())
+        if not MATRIX_RANGE[0] <= largest <= MATRIX_RANGE[1]:
+            raise InputError(
+                f"cannot export c-library: the {name} correction's largest entry {largest:.3g} "
+                f"is outside {MATRIX_RANGE[0]:g}..{MATRIX_RANGE[1]:g} (the gain is not a sensor's)"
+            )
+        if np.linalg.cond(M, "fro") > 0.9 * CONDITION_MAX:
+            raise InputError(
+                f"cannot export c-library: the {name} gain is (nearly) singular: condition "
+                f"number {np.linalg.cond(M):.3g}, the device accepts at most {CONDITION_MAX:g}"
+            )
+        if np.abs(M @ fields[f"{name}_bias"]).max() > BIAS_MAX:
+            raise InputError(
+                f"cannot export c-library: the {name} bias is more than {BIAS_MAX:g} calibrated "
+                "units: not a sensor's"
+            )
 
 
 def _isotropic(M: Array, cov: Array) -> float:
@@ -156,13 +213,13 @@ def _monitor(cal: Calibration, inv: dict[str, Array]) -> dict[str, float | Array
         "gravity_norm": g,
         "field_norm": F,
         "dip_deg": float(cal.dip_deg or 0.0),
-        "norm_var_sample": var_m,
+        "norm_var_sample": max(var_m, VAR_FLOOR * F**2),
         "norm_var_fixed": pose_m + (rel * F) ** 2,
-        "dip_var_sample": var_m / F**2 + var_a / g**2,
+        "dip_var_sample": max(var_m / F**2 + var_a / g**2, VAR_FLOOR),
         "dip_var_fixed": pose_m / F**2 + pose_a / g**2 + dip_std**2 + (tol / g) ** 2 / 3.0,
         "accel_norm_tol": tol,
         "monitor_threshold": -2.0 * math.log(ALPHA),
-        "hard_iron_cov": Mm @ bias_cov @ Mm.T,
+        "hard_iron_cov": _hard_iron_prior(Mm @ bias_cov @ Mm.T, F),
         "hard_iron_q": (HARD_IRON_WALK * F) ** 2,
     }
 
@@ -223,6 +280,7 @@ def factory(cal: Calibration, sensor_id: int | None = None) -> tuple[int, int, d
     for key, value in fields.items():
         if not (np.isfinite(value).all() and np.all(np.abs(value) <= big)):
             raise InputError(f"cannot export c-library: {key} does not fit a C float")
+    _plausible(flags, fields)
     return sid, flags, fields
 
 
@@ -285,43 +343,111 @@ _TEMPERATURE_FIELDS = """\
     float accel_temp[12], mag_temp[12], gyro_temp[12];"""
 _TEMPERATURE_API = """\
 /* The same with the die temperature t (deg C): the bias at t (FIELDCAL_HAS_TEMPERATURE;
- * a sensor without temperature terms has zero coefficients, so t changes nothing). */
-void fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3]);
-void fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
-void fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
-void fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);"""
+ * a sensor without temperature terms has zero coefficients, so t changes nothing).
+ * FIELDCAL_ERR_VALUE (out NaN) for a non-finite t, raw or result. */
+int fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3]);
+int fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
+int fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
+int fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);"""
 _TEMPERATURE_CODE = """\
 
 /* TEMPERATURE_FORMULA */
-void fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3])
+int fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3])
 {
-    const float u = (t < temp[1] ? temp[1] : (t > temp[2] ? temp[2] : t)) - temp[0];
+    float u;
     int j;
+    if (out == NULL) {
+        return FIELDCAL_ERR_VALUE;
+    }
+    if (temp == NULL || b == NULL || !isfinite(t)) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_VALUE;
+    }
+    u = (t < temp[1] ? temp[1] : (t > temp[2] ? temp[2] : t)) - temp[0];
     for (j = 0; j < 3; j++) {
         out[j] = b[j] + ((temp[9 + j] * u + temp[6 + j]) * u + temp[3 + j]) * u;
     }
+    if (!fc_finite3(out)) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_VALUE;
+    }
+    return FIELDCAL_OK;
 }
 
-void fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+/* A sensor's terms: a span within -273.15..1000 deg C, the bias at both ends within bounds. */
+static int fc_temperature_ok(const float temp[12], const float M[9], const float b[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->accel_temp, cal->accel_bias, t, b);
-    fieldcal_apply(cal->accel_matrix, b, raw, out);
+    float bt[3], mb[3];
+    int k, i;
+    if (!(temp[0] >= -273.15f && temp[0] <= 1000.0f && temp[1] >= -273.15f &&
+          temp[1] <= temp[2] && temp[2] <= 1000.0f)) {
+        return 0;
+    }
+    for (k = 1; k <= 2; k++) {
+        if (fieldcal_bias_at(temp, b, temp[k], bt) != FIELDCAL_OK) {
+            return 0;
+        }
+        fc_mul(M, bt, mb);
+        for (i = 0; i < 3; i++) {
+            if (!(fabsf(mb[i]) <= FIELDCAL_BIAS_MAX)) {
+                return 0;
+            }
+        }
+    }
+    return 1;
 }
 
-void fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+static int fc_sensor_at(int has, const float temp[12], const float M[9], const float b[3],
+                        const float raw[3], float t, float out[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->mag_temp, cal->mag_bias, t, b);
-    fieldcal_apply(cal->mag_matrix, b, raw, out);
+    float bt[3];
+    int rc;
+    if (out == NULL) {
+        return FIELDCAL_ERR_VALUE;
+    }
+    if (!has) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_MISSING;
+    }
+    rc = fieldcal_bias_at(temp, b, t, bt);
+    return rc == FIELDCAL_OK ? fieldcal_apply(M, bt, raw, out) : rc;
 }
 
-void fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+int fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->gyro_temp, cal->gyro_bias, t, b);
-    fieldcal_apply(cal->gyro_matrix, b, raw, out);
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_ACCEL) != 0u, cal->accel_temp,
+                        cal->accel_matrix, cal->accel_bias, raw, t, out);
+}
+
+int fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+{
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_MAG) != 0u, cal->mag_temp, cal->mag_matrix,
+                        cal->mag_bias, raw, t, out);
+}
+
+int fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+{
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_GYRO) != 0u, cal->gyro_temp,
+                        cal->gyro_matrix, cal->gyro_bias, raw, t, out);
 }""".replace("TEMPERATURE_FORMULA", TEMPERATURE_FORMULA)
+_TEMPERATURE_CHECK = """\
+    if (((flags & FIELDCAL_HAS_ACCEL) &&
+         !fc_temperature_ok(cal->accel_temp, cal->accel_matrix, cal->accel_bias)) ||
+        ((flags & FIELDCAL_HAS_MAG) &&
+         !fc_temperature_ok(cal->mag_temp, cal->mag_matrix, cal->mag_bias)) ||
+        ((flags & FIELDCAL_HAS_GYRO) &&
+         !fc_temperature_ok(cal->gyro_temp, cal->gyro_matrix, cal->gyro_bias))) {
+        return FIELDCAL_ERR_VALUE;
+    }"""
 _TEMPERATURE_BLOB = """\
     for (i = 0; i < 12; i++) f[n++] = &c->accel_temp[i];
     for (i = 0; i < 12; i++) f[n++] = &c->mag_temp[i];
@@ -359,11 +485,16 @@ def files(cal: Calibration, sensor_id: int | None = None) -> dict[str, str]:
         "TEMPERATURE_API": _TEMPERATURE_API if thermal else "",
         "TEMPERATURE_CODE": _TEMPERATURE_CODE if thermal else "",
         "TEMPERATURE_BLOB": _TEMPERATURE_BLOB if thermal else "",
+        "TEMPERATURE_CHECK": _TEMPERATURE_CHECK if thermal else "",
+        "KNOWN_FLAGS": f"0x{_known_flags(thermal):x}u",
         "FACTORY": _initializer(sid, flags, fields),
     }
     header = _fill(_source("fieldcal_cal.h"), parts)
     source = _fill(_source("fieldcal_cal.c"), parts)
-    return {"fieldcal_cal.h": header, "fieldcal_cal.c": source}
+    # the pair's mark (FIELDCAL_PAIR_ID): a digest of both texts, so a header from another
+    # export (another calibration, another fieldcal) stops the build with #error
+    pair = {"PAIR_ID": f"0x{zlib.crc32((header + source).encode('utf-8')):08x}u"}
+    return {"fieldcal_cal.h": _fill(header, pair), "fieldcal_cal.c": _fill(source, pair)}
 
 
 def write(cal: Calibration, sensor_id: int | None = None) -> str:
