@@ -44,6 +44,7 @@ from .stats.pose_stats import PoseStats, Samples, brief, summarize_scaled
 from .stats.pose_temperature import pose_temperatures
 from .stats.scaling import normalise
 from .trust.handedness import decide as decide_handedness
+from .trust.input_reasons import with_scale_reasons
 from .trust.targets import DEFAULT_TARGETS, Targets
 
 if TYPE_CHECKING:
@@ -502,7 +503,7 @@ def calibrate_with(
         # one line when anything a correction uses is not finite.
         with _one_thread(), np.errstate(all="ignore"):
             cal, scales = _fit(checked, accel, mag, time_ordered, temperature)
-            cal = _in_user_terms(cal, checked, scales)
+            cal = with_scale_reasons(_in_user_terms(cal, checked, scales))
     except np.linalg.LinAlgError:  # no numpy message reaches the user: it names no fix
         raise ValueError(
             "the poses cannot determine the calibration (a singular or indefinite system); "

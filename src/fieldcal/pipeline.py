@@ -46,6 +46,7 @@ from .settings import (
 )
 from .stats.pose_stats import check_spread, stats_from_means
 from .trust.continuous_motion import trust_continuous
+from .trust.input_reasons import with_input_reasons
 from .trust.targets import Targets
 
 __all__ = [
@@ -423,6 +424,7 @@ def run_log(
         cal = fold_axes(cal, P, mag_axes)
     if gravity_sign:
         cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
+    cal = with_input_reasons(cal, log)  # the gyroscope's scale, a temperature column left out
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
 
 
@@ -591,7 +593,7 @@ def _run_continuous(
         provenance["rate"] = float(hz)
     cal = dataclasses.replace(cal, options={**cal.options, **provenance})
     found = PoseSet(None, None, [], None, hz, source="continuous")
-    return LogCalibration(cal, found, tuple(notes))
+    return LogCalibration(with_input_reasons(cal, log), found, tuple(notes))
 
 
 def _log_rows(log: Log, entry: Mapping[str, Any]) -> tuple[int, int]:

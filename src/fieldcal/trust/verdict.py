@@ -37,6 +37,7 @@ __all__ = [
     "judge",
     "reason",
     "with_dropped_lines",
+    "with_reasons",
 ]
 
 Array = NDArray[np.float64]
@@ -180,6 +181,17 @@ RULES: dict[str, tuple[str, str]] = {
         "{dropped} of {total} data lines ({share:.1%}) were dropped as unreadable ({which}); "
         "the samples between are missing: check the cable, the baud rate and that the device "
         "writes whole lines",
+    ),
+    "unexplained_scale": (
+        "warn",
+        "the {sensor}'s gain is {scale:.3g} raw units per {unit}: no physical unit explains "
+        "that (expected {low:g} to {high:g}); check that the columns hold the sensor's readings "
+        "and how they were scaled",
+    ),
+    "temperature_ignored": (
+        "warn",
+        "the temperature column {column!r} was not used ({why}); the calibration has no "
+        "temperature terms: give the column in °C, or leave --temp-col out",
     ),
 }
 
@@ -576,6 +588,32 @@ def _correlated(case: Case) -> Iterator[Fired]:
         )
 
 
+#: Gains (raw units per calibrated unit: g, the field's strength, rad/s) that some physical unit
+#: explains, per sensor: from the largest unit (g, tesla, rev/s) to the finest counts (20-bit
+#: ADCs, nT), with a decade of room either side.
+SCALE_RANGE = {"accel": (1e-4, 1e8), "mag": (1e-8, 1e8), "gyro": (1e-4, 1e8)}
+SCALE_UNIT = {"accel": "unit of gravity", "mag": "unit of the field's strength", "gyro": "rad/s"}
+
+
+def unexplained_scales(cal: Calibration, sensors: Sequence[str]) -> list[Fired]:
+    """``unexplained_scale`` for each of ``sensors`` whose gain's scale (the geometric mean of
+    its singular values) is outside :data:`SCALE_RANGE`."""
+    fired: list[Fired] = []
+    for s in sensors:
+        sensor = getattr(cal, s, None)
+        if sensor is None:
+            continue
+        with np.errstate(all="ignore"):
+            sigma = np.linalg.svd(np.asarray(sensor.gain, dtype=float), compute_uv=False)
+            scale = float(np.exp(np.mean(np.log(sigma))))
+        low, high = SCALE_RANGE[s]
+        if np.isfinite(scale) and not low <= scale <= high:
+            name = SENSOR_NAME.get(s, "gyroscope")
+            numbers = {"sensor": name, "scale": scale, "unit": SCALE_UNIT[s]}
+            fired.append(("unexplained_scale", {**numbers, "low": low, "high": high}))
+    return fired
+
+
 def _temperature_span(case: Case) -> Iterator[Fired]:
     """A temperature column whose span was too small for temperature terms
     (:mod:`fieldcal.likelihood.temperature`): the calibration holds at the mean temperature."""
@@ -665,3 +703,17 @@ def with_dropped_lines(verdict: Verdict, dropped: Mapping[str, int], rows: int) 
     reasons = sorted((*verdict.reasons, added), key=lambda r: -_ORDER[r.level])
     worst = max({"pass": 0, "warn": 1, "fail": 2}[verdict.level], _ORDER[added.level])
     return Verdict({2: "fail", 1: "warn", 0: "pass"}[worst], tuple(reasons))
+
+
+def with_reasons(verdict: Verdict, reasons: Sequence[Reason]) -> Verdict:
+    """``verdict`` with ``reasons`` found outside :func:`judge` (a gain no unit explains, an
+    unusable temperature column) added, those it has already left out: the worst level wins,
+    the most severe first."""
+    reasons = [r for r in reasons if r not in verdict.reasons]
+    if not reasons:
+        return verdict
+    merged = sorted((*verdict.reasons, *reasons), key=lambda r: -_ORDER[r.level])
+    worst = max(
+        [{"pass": 0, "warn": 1, "fail": 2}[verdict.level]] + [_ORDER[r.level] for r in reasons]
+    )
+    return Verdict({2: "fail", 1: "warn", 0: "pass"}[worst], tuple(merged))
