@@ -38,6 +38,7 @@ from .errors import InputError
 __all__ = [
     "check_outputs",
     "fsync_folder",
+    "make_folder",
     "record",
     "replacing",
     "same_file",
@@ -139,6 +140,33 @@ def _special(path: Path) -> bool:
     except (OSError, ValueError):
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def make_folder(path: str | os.PathLike[str]) -> Path:
+    """Create the output folder ``path`` (and its parents) unless it exists; one line naming
+    the problem when it cannot be: a file there, or a symbolic link to nowhere.
+
+    Parameters
+    ----------
+    path : str or path
+
+    Returns
+    -------
+    Path
+    """
+    folder = Path(path)
+    if folder.is_symlink() and not folder.exists():
+        raise InputError(
+            f"{folder} is a symbolic link to {os.readlink(folder)}, which does not exist; "
+            "create that folder or give another one"
+        )
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder} is a file, not a folder; give a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a parent is a file or a dangling link
+        raise InputError(f"{folder}: a part of the path is not a folder; give another") from None
+    return folder
 
 
 @contextmanager

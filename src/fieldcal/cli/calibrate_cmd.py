@@ -231,7 +231,7 @@ def export(
             force,
             folders_made=True,
         )
-        Path(output).mkdir(parents=True, exist_ok=True)
+        _files.make_folder(output)
         # the files are only right together (the C library's .h and .c): all or none
         _files.write_together({Path(output) / name: data for name, data in files.items()})
         return
