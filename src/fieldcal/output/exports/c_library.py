@@ -83,6 +83,9 @@ CONTENT = (
 FILES = ("fieldcal_cal.h", "fieldcal_cal.c")
 #: The monitor's false-alarm rate per block (at most; see the module docstring).
 ALPHA = 1e-3
+#: Samples per block and blocks per decision (``FIELDCAL_MONITOR_BLOCK``, ``_WINDOW``).
+BLOCK = 16
+WINDOW = 8
 #: The hard iron's random walk per update, relative to the field (``hard_iron_q = (w F)²``):
 #: about 1 % of the field after 100 updates (a few minutes of motion), so a slow drift is
 #: followed; a sudden change needs ``fieldcal_hardiron_widen``.
@@ -218,10 +221,82 @@ def _monitor(cal: Calibration, inv: dict[str, Array]) -> dict[str, float | Array
         "dip_var_sample": max(var_m / F**2 + var_a / g**2, VAR_FLOOR),
         "dip_var_fixed": pose_m / F**2 + pose_a / g**2 + dip_std**2 + (tol / g) ** 2 / 3.0,
         "accel_norm_tol": tol,
-        "monitor_threshold": -2.0 * math.log(ALPHA),
+        "monitor_threshold": rest_threshold(
+            (pose_m + (rel * F) ** 2, var_m),
+            (pose_m / F**2 + pose_a / g**2 + dip_std**2, var_m / F**2 + var_a / g**2),
+            (pose_m + (rel * F) ** 2, var_m),
+            (
+                pose_m / F**2 + pose_a / g**2 + dip_std**2 + (tol / g) ** 2 / 3.0,
+                var_m / F**2 + var_a / g**2,
+            ),
+        ),
         "hard_iron_cov": _hard_iron_prior(Mm @ bias_cov @ Mm.T, F),
         "hard_iron_q": (HARD_IRON_WALK * F) ** 2,
     }
+
+
+def _mass(scale: float, dof: int, edges: Array) -> Array:
+    """The probability of each bin between ``edges`` of ``scale`` times a chi-square."""
+    from scipy.stats import chi2
+
+    return np.asarray(np.diff(chi2.cdf(edges / scale, dof)), dtype=float)
+
+
+def rest_threshold(
+    norm: tuple[float, float],
+    dip: tuple[float, float],
+    norm_model: tuple[float, float] | None = None,
+    dip_model: tuple[float, float] | None = None,
+    alpha: float = ALPHA,
+) -> float:
+    """The monitor's threshold: the ``1 − alpha`` quantile of its statistic (the mean ``d²`` of
+    :data:`WINDOW` blocks of :data:`BLOCK` samples) for a device at rest, its worst case.
+
+    Each channel's block mean errs by a part that a rest shares over the whole window (the
+    pose-level error and the calibration's own, variance ``v``) plus the samples' noise
+    (``s``, independent from block to block); the statistic divides by the model's variance
+    ``v_m + s_m/B`` (for the dip, ``v_m`` also allows for the tilt that accelerations within
+    the gate cause: none at rest). So a channel contributes ``c [ρ + (1 − ρ)/W] χ²(1) + c (1 −
+    ρ)/W χ²(W − 1)`` with ``ρ = v/(v + s/B)`` and ``c = (v + s/B)/(v_m + s_m/B)``; the
+    quantile of the sum of the four terms is found by convolving their distributions.
+    In motion, blocks see different orientations (their shared parts decorrelate) and false
+    alarms are rarer still. With every part shared (``ρ = 1``, ``c = 1``) this is ``−2 ln
+    alpha``, the threshold of a single block.
+
+    Parameters
+    ----------
+    norm, dip : (float, float)
+        ``(v, s)`` of each channel at rest.
+    norm_model, dip_model : (float, float), optional
+        ``(v_m, s_m)`` the statistic divides by (default: ``norm``, ``dip``).
+    alpha : float
+        False alarms per block.
+
+    Returns
+    -------
+    float
+    """
+    from scipy.signal import fftconvolve
+    from scipy.stats import chi2
+
+    terms: list[tuple[float, int]] = []
+    for (v, s), (vm, sm) in ((norm, norm_model or norm), (dip, dip_model or dip)):
+        total, model = v + s / BLOCK, vm + sm / BLOCK
+        if not (total > 0 and model > 0):
+            continue
+        rho, c = v / total, total / model
+        terms += [(c * (rho + (1 - rho) / WINDOW), 1), (c * (1 - rho) / WINDOW, WINDOW - 1)]
+    terms = [(a, k) for a, k in terms if a > 1e-12]
+    if not terms:
+        return -2.0 * math.log(alpha)
+    top = sum(a * chi2.ppf(1 - alpha / 10, k) for a, k in terms)  # beyond the quantile
+    edges = np.linspace(0.0, top, 40_001)
+    mass = np.array([1.0])
+    for a, k in terms:
+        mass = fftconvolve(mass, _mass(a, k, edges))[: len(edges) - 1]
+    survival = 1.0 - np.cumsum(np.clip(mass, 0.0, None))
+    # the upper edge of the first bin where the survival drops below alpha (errs on the safe side)
+    return float(edges[1:][np.argmax(survival <= alpha)])
 
 
 def sensor_id_of(cal: Calibration) -> int:

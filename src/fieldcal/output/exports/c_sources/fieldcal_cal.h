@@ -133,7 +133,9 @@ uint32_t fieldcal_crc32(const uint8_t *data, size_t len);
 
 /* ---- check ---- */
 #define FIELDCAL_MONITOR_BLOCK 16 /* samples averaged per block */
-#define FIELDCAL_MONITOR_WINDOW 8 /* blocks averaged per decision */
+#ifndef FIELDCAL_MONITOR_WINDOW
+#define FIELDCAL_MONITOR_WINDOW 8 /* blocks averaged per decision (2 to 255) */
+#endif
 #define FIELDCAL_MONITOR_PENDING 0 /* sample taken, no decision yet */
 #define FIELDCAL_MONITOR_OK 1      /* a block ended: the calibration holds */
 #define FIELDCAL_MONITOR_ALARM 2   /* a block ended: it no longer holds */
