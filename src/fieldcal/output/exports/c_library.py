@@ -17,12 +17,14 @@ calibrated units; ``C_s = M_s Σ_s M_sᵀ`` a sensor's per-sample noise covarian
   (``accel_norm_tol = max(4 sqrt(tr(C_a)/3), 0.01 g)``: a sample is used when ``||a| − g| <= t``,
   and an acceleration up to ``t`` tilts the measured down direction by up to ``t/g``);
 - a block of ``B`` samples gives ``d² = z_norm² + z_dip²`` with each ``z`` the block mean's
-  error over its standard deviation ``sqrt(var_fixed + var_sample/B)``: chi-square with 2
-  degrees of freedom on a calibration that holds. The alarm compares the mean ``d²`` of the
-  last ``W`` blocks with ``monitor_threshold = −2 ln α``, the chi-square (2 dof) quantile
-  ``1 − α``: when the blocks are independent the mean is ``χ²(2W)/W`` and the rate is far below
-  ``α``; when they are the same (a device at rest) it is ``α``, so ``α`` bounds the false alarms
-  per block.
+  error over its standard deviation ``sqrt(var_fixed + var_sample/B)``. The alarm compares the
+  mean ``d²`` of the last ``W`` blocks with ``monitor_threshold``, the ``1 − α`` quantile of that
+  mean for a device at rest, the worst case: the fixed parts (pose-level error, the
+  calibration's own; for the dip without the acceleration allowance, none at rest) shared by
+  the whole window, the samples' noise independent from block to block
+  (:func:`rest_threshold`; ``−2 ln α`` when everything is shared). In motion the blocks see
+  different orientations and false alarms are rarer still, so ``α`` bounds the false alarms
+  per block (docs/microcontroller.md: the figures of ``benchmarks/monitor_alarm.py``).
 
 Temperature terms (``docs/methods/temperature.md``), when the calibration has them: each
 sensor's ``<sensor>_temp[12]`` holds ``T_ref, T_min, T_max`` and ``c1, c2, c3`` (3 each, raw units
