@@ -34,6 +34,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from _clib import hand_motion, hand_session, hand_stream
+
 import fieldcal
 from fieldcal.output.exports import c_library, export_files
 
@@ -61,42 +65,6 @@ int main(int argc, char **argv)
     return 0;
 }
 """
-
-
-def session(seed: int = 3):
-    return fieldcal.simulate(
-        "paper",
-        seed=seed,
-        n_poses=20,
-        noise_alpha=(5e-5, 5e-5),
-        pose_noise=1e-3,
-        dip_deg=(58.0, 62.0),
-    )
-
-
-def motion(n: int, rng: np.random.Generator, tilt_deg: float = 30.0) -> Rotation:
-    t = np.arange(n) / 100.0
-    ph = rng.uniform(0, 2 * np.pi, size=4)
-    roll = tilt_deg * np.sin(2 * np.pi * 0.05 * t + ph[0]) * np.cos(0.011 * t + ph[1])
-    pitch = tilt_deg * np.sin(2 * np.pi * 0.037 * t + ph[2])
-    yaw = np.degrees(ph[3]) + 40.0 * t / 10.0 + 60.0 * np.sin(2 * np.pi * 0.013 * t)
-    return Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll]), degrees=True)
-
-
-def stream(s, rot: Rotation, rng, shift=None):
-    """Raw readings of the session's true device along ``rot`` (body -> world) with its
-    noise and its pose-level error (one draw per run: a rest) ; ``shift`` (n, 3) body frame."""
-    truth = s.truth
-    R = rot.as_matrix()
-    out = []
-    for name, d in (("accel", None), ("mag", shift)):
-        sensor = truth.sensor(name)
-        body = np.einsum("nji,j->ni", R, truth.reference(name))
-        if d is not None:
-            body = body + d
-        noise = rng.multivariate_normal(np.zeros(3), np.asarray(sensor.noise_cov), size=len(body))
-        out.append(sensor.distort(body) + noise)
-    return out
 
 
 class Monitor:
@@ -148,7 +116,7 @@ def ramps(mon: Monitor, s, count: int, seed: int) -> dict[str, object]:
         direction = rng.normal(size=3)
         direction /= np.linalg.norm(direction)
         shift = np.linspace(0.0, size, n)[:, None] * direction
-        raw_a, raw_m = stream(s, motion(n, rng), rng, shift)
+        raw_a, raw_m = hand_stream(s, hand_motion(n, rng), rng, shift)
         blocks = mon.run(raw_a, raw_m)
         alarm = blocks[blocks[:, 1] == 2]
         at = int(alarm[0, 0]) if len(alarm) else n - 1
@@ -170,7 +138,7 @@ def clean(mon: Monitor, s, runs: int, rests: int, seed: int) -> dict[str, int]:
     blocks = alarms = 0
     for k in range(runs):
         rng = np.random.default_rng([seed, 1, k])
-        raw_a, raw_m = stream(s, motion(16_000, rng), rng)
+        raw_a, raw_m = hand_stream(s, hand_motion(16_000, rng), rng)
         out = mon.run(raw_a, raw_m)
         blocks += len(out)
         alarms += int((out[:, 1] == 2).sum())
@@ -181,7 +149,7 @@ def clean(mon: Monitor, s, runs: int, rests: int, seed: int) -> dict[str, int]:
         R = Rotation.random(random_state=int(rng.integers(2**31)))
         n = 1600  # 16 s at rest: 100 blocks of one pose
         rot = Rotation.from_matrix(np.repeat(R.as_matrix()[None], n, axis=0))
-        raw_a, raw_m = stream(s, rot, rng)
+        raw_a, raw_m = hand_stream(s, rot, rng)
         # the pose-level error of this rest: one offset for the whole rest, as the truth's
         for name, raw in (("accel", raw_a), ("mag", raw_m)):
             q = truth.sensor(name).pose_noise_std
@@ -206,7 +174,7 @@ def main() -> None:
     parser.add_argument("--window", type=int, default=None, help="override W (experiments)")
     parser.add_argument("--threshold", type=float, default=None, help="override (experiments)")
     args = parser.parse_args()
-    s = session()
+    s = hand_session()
     cal = fieldcal.calibrate(s.accel, s.mag)
     _, _, fields = c_library.factory(cal)
     started = time.process_time()
