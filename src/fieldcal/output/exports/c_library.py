@@ -181,7 +181,13 @@ def _plausible(flags: int, fields: dict[str, Array]) -> None:
                 f"cannot export c-library: the {name} gain is (nearly) singular: condition "
                 f"number {np.linalg.cond(M):.3g}, the device accepts at most {CONDITION_MAX:g}"
             )
-        if np.abs(M @ fields[f"{name}_bias"]).max() > BIAS_MAX:
+        biases = [fields[f"{name}_bias"]]
+        if f"{name}_temp" in fields:  # the bias at both ends of the temperature span
+            temp = fields[f"{name}_temp"]
+            for end in (temp[1], temp[2]):
+                u = end - temp[0]
+                biases.append(biases[0] + temp[3:6] * u + temp[6:9] * u**2 + temp[9:12] * u**3)
+        if max(float(np.abs(M @ b).max()) for b in biases) > BIAS_MAX:
             raise InputError(
                 f"cannot export c-library: the {name} bias is more than {BIAS_MAX:g} calibrated "
                 "units: not a sensor's"

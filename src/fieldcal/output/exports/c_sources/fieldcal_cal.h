@@ -134,7 +134,8 @@ uint32_t fieldcal_crc32(const uint8_t *data, size_t len);
 /* ---- check ---- */
 #define FIELDCAL_MONITOR_BLOCK 16 /* samples averaged per block */
 #ifndef FIELDCAL_MONITOR_WINDOW
-#define FIELDCAL_MONITOR_WINDOW 8 /* blocks averaged per decision (2 to 255) */
+#define FIELDCAL_MONITOR_WINDOW 8 /* blocks averaged per decision; monitor_threshold is
+                                   * computed for 8 (another value changes the alarm rate) */
 #endif
 #define FIELDCAL_MONITOR_PENDING 0 /* sample taken, no decision yet */
 #define FIELDCAL_MONITOR_OK 1      /* a block ended: the calibration holds */
