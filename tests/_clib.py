@@ -9,7 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+import fieldcal
 from fieldcal.output.exports import export_files
 
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
@@ -43,6 +45,7 @@ class Monitor(ctypes.Structure):
         ("dip_deg", ctypes.c_float),
         ("blocks", ctypes.c_uint32),
         ("alarms", ctypes.c_uint32),
+        ("rejected", ctypes.c_uint32),
     ]
 
 
@@ -53,6 +56,8 @@ class HardIron(ctypes.Structure):
         ("last_d", ctypes.c_float * 3),
         ("last_m", ctypes.c_float * 3),
         ("updates", ctypes.c_uint32),
+        ("rejected", ctypes.c_uint32),
+        ("field_norm", ctypes.c_float),
     ]
 
 
@@ -147,3 +152,44 @@ class Library:
                 ctypes.byref(h), ctypes.byref(self.factory), v3(a), v3(m)
             )
         return np.array(h.beta[:]), np.array(h.P[:]).reshape(3, 3), h.updates
+
+
+# ------------------------------------------- simulated readings (the tests and benchmarks/)
+def hand_session(seed: int = 3):
+    """A cheap IMU: 20 poses, noise about 0.5 % of the field per sample, a pose-level error,
+    dip about 60 degrees."""
+    return fieldcal.simulate(
+        "paper",
+        seed=seed,
+        n_poses=20,
+        noise_alpha=(5e-5, 5e-5),
+        pose_noise=1e-3,
+        dip_deg=(58.0, 62.0),
+    )
+
+
+def hand_motion(n: int, rng: np.random.Generator, tilt_deg: float = 30.0) -> Rotation:
+    """Ordinary hand motion: roll and pitch within ±tilt_deg, the heading wandering; 100 Hz."""
+    t = np.arange(n) / 100.0
+    phases = rng.uniform(0, 2 * np.pi, size=4)
+    roll = tilt_deg * np.sin(2 * np.pi * 0.05 * t + phases[0]) * np.cos(0.011 * t + phases[1])
+    pitch = tilt_deg * np.sin(2 * np.pi * 0.037 * t + phases[2])
+    yaw = np.degrees(phases[3]) + 40.0 * t / 10.0 + 60.0 * np.sin(2 * np.pi * 0.013 * t)
+    return Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll]), degrees=True)
+
+
+def hand_stream(session, rot: Rotation, rng, mag_shift=None):
+    """Raw readings of the session's true device along ``rot`` (body -> world), with its noise.
+
+    ``mag_shift`` (n, 3): a change of the hard iron in the body frame, calibrated units."""
+    truth = session.truth
+    body_to_world = rot.as_matrix()
+    out = []
+    for name, shift in (("accel", None), ("mag", mag_shift)):
+        sensor = truth.sensor(name)
+        body = np.einsum("nji,j->ni", body_to_world, truth.reference(name))
+        if shift is not None:
+            body = body + shift
+        noise = rng.multivariate_normal(np.zeros(3), np.asarray(sensor.noise_cov), size=len(body))
+        out.append(sensor.distort(body) + noise)
+    return out[0], out[1]

@@ -9,6 +9,12 @@ the old file or the new one, never a fragment, and the temporary file is removed
 inputs (compared by file identity, so hard links and symbolic links are caught, not by path),
 and an existing output is replaced only when the caller says so (``--force``).
 
+:func:`write_together` writes files that are only right together (the C library's ``.h`` and
+``.c``): each is written in full to its temporary file first, so a full disk or an error leaves
+every old file as it was; then, holding a lock on the folder (``flock``: a concurrent export waits
+its turn) and with Ctrl-C held back, each is renamed into place. Only a power cut between two
+renames (microseconds) can leave a mixed pair, and the C library refuses to build one (#error).
+
 :func:`record` collects the files completed while it is active, so a command interrupted after
 writing some of its files can say which.
 """
@@ -19,21 +25,26 @@ import contextvars
 import os
 import secrets
 import shutil
+import signal
 import stat
+import threading
 from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from pathlib import Path
+from types import FrameType
 
 from .errors import InputError
 
 __all__ = [
     "check_outputs",
     "fsync_folder",
+    "make_folder",
     "record",
     "replacing",
     "same_file",
     "write_bytes",
     "write_text",
+    "write_together",
 ]
 
 #: The suffix of a temporary file (``.<name>.<8 hex digits>.part`` beside the target).
@@ -129,6 +140,33 @@ def _special(path: Path) -> bool:
     except (OSError, ValueError):
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def make_folder(path: str | os.PathLike[str]) -> Path:
+    """Create the output folder ``path`` (and its parents) unless it exists; one line naming
+    the problem when it cannot be: a file there, or a symbolic link to nowhere.
+
+    Parameters
+    ----------
+    path : str or path
+
+    Returns
+    -------
+    Path
+    """
+    folder = Path(path)
+    if folder.is_symlink() and not folder.exists():
+        raise InputError(
+            f"{folder} is a symbolic link to {os.readlink(folder)}, which does not exist; "
+            "create that folder or give another one"
+        )
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder} is a file, not a folder; give a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a parent is a file or a dangling link
+        raise InputError(f"{folder}: a part of the path is not a folder; give another") from None
+    return folder
 
 
 @contextmanager
@@ -236,3 +274,99 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """
     with replacing(path) as temp:
         temp.write_bytes(data)
+
+
+def _write(temp: Path, data: bytes) -> None:
+    """Write ``data`` to ``temp`` and flush it to disk (one place a full disk shows)."""
+    with open(temp, "wb") as stream:
+        stream.write(data)
+        stream.flush()
+        os.fsync(stream.fileno())
+
+
+@contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive ``flock`` on ``folder`` itself (no lock file is left behind); a no-op where
+    folders cannot be locked."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+@contextmanager
+def _no_interrupt() -> Iterator[None]:
+    """Hold Ctrl-C back until the block ends (then raise it): renames are not cut in half."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+
+    def hold(signum: int, frame: FrameType | None) -> None:
+        caught.append(signum)
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def write_together(files: Mapping[str | os.PathLike[str], bytes]) -> None:
+    """Write files that belong together: all of them replaced, or none (see the module).
+
+    Parameters
+    ----------
+    files : mapping of path -> bytes
+        The files, in one folder or several (each folder is locked while its files are
+        renamed). Symbolic links stay; the files they point to are replaced.
+    """
+    temps: dict[Path, Path] = {}
+    try:
+        for path, data in files.items():
+            target = Path(os.path.realpath(path))
+            temp = target.parent / f".{target.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"
+            temps[target] = temp
+            try:
+                _write(temp, data)
+            except FileNotFoundError:
+                raise InputError(
+                    f"{path}: the folder {target.parent} does not exist; create it first"
+                ) from None
+            except OSError as exc:  # a full disk: named by the file the user asked for
+                raise OSError(
+                    exc.errno, f"{exc.strerror}; no file was replaced", str(path)
+                ) from None
+        folders = sorted({t.parent for t in temps})
+        with _locked(folders), _no_interrupt():
+            for target, temp in temps.items():
+                if target.is_file():
+                    shutil.copymode(target, temp)
+                os.replace(temp, target)
+    finally:
+        for temp in temps.values():
+            with suppress(OSError):
+                temp.unlink()
+    for folder in {t.parent for t in temps}:
+        fsync_folder(folder)
+    done = _DONE.get()
+    if done is not None:
+        done.extend(Path(p) for p in files)
+
+
+@contextmanager
+def _locked(folders: Sequence[Path]) -> Iterator[None]:
+    """Every folder's lock, taken in a fixed (sorted) order so two writers never deadlock."""
+    with ExitStack() as stack:
+        for folder in folders:
+            stack.enter_context(_folder_lock(folder))
+        yield

@@ -47,6 +47,7 @@ from .stats.pose_temperature import pose_temperatures
 from .stats.scaling import normalise
 from .trust.handedness import decide as decide_handedness
 from .trust.targets import DEFAULT_TARGETS, Targets
+from .trust.verdict import with_late_checks
 
 if TYPE_CHECKING:
     from threadpoolctl import ThreadpoolController
@@ -514,7 +515,7 @@ def calibrate_with(
         # one line when anything a correction uses is not finite.
         with _one_thread(), np.errstate(all="ignore"):
             cal, scales = _fit(checked, accel, mag, time_ordered, temperature)
-            cal = _in_user_terms(cal, checked, scales)
+            cal = with_late_checks(_in_user_terms(cal, checked, scales))
     except np.linalg.LinAlgError:  # no numpy message reaches the user: it names no fix
         raise ValueError(
             "the poses cannot determine the calibration (a singular or indefinite system); "

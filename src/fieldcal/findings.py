@@ -13,7 +13,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Findings", "GyroFindings", "MotionFindings", "PoseCorrelation", "TemperatureSpan"]
+__all__ = [
+    "Findings",
+    "GyroFindings",
+    "MotionFindings",
+    "PoseCorrelation",
+    "TemperatureIgnored",
+    "TemperatureSpan",
+]
 
 
 @dataclass(frozen=True)
@@ -95,6 +102,14 @@ class TemperatureSpan:
 
 
 @dataclass(frozen=True)
+class TemperatureIgnored:
+    """A temperature column left out as unusable (``--ignore-bad-temp``): its name and why."""
+
+    column: str
+    why: str
+
+
+@dataclass(frozen=True)
 class Findings:
     """Every kind of finding an estimator reports; ``None`` where the path does not measure it.
 
@@ -109,9 +124,12 @@ class Findings:
     temperature_span : TemperatureSpan or None
         The continuous estimator's refused temperature terms (the pose path reads its pose
         statistics).
+    temperature_ignored : TemperatureIgnored or None
+        The log's temperature column, left out as unusable.
     """
 
     gyro: GyroFindings | None = None
     pose_correlation: PoseCorrelation | None = None
     motion: MotionFindings | None = None
     temperature_span: TemperatureSpan | None = None
+    temperature_ignored: TemperatureIgnored | None = None

@@ -10,7 +10,15 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["LARGEST", "MOST_PLANNED", "RANGE_TEXT", "SMALLEST", "in_range", "power_of_two"]
+__all__ = [
+    "LARGEST",
+    "MOST_PLANNED",
+    "PLAUSIBLE_C",
+    "RANGE_TEXT",
+    "SMALLEST",
+    "in_range",
+    "power_of_two",
+]
 
 #: Largest magnitude taken for a reading, a field, a noise or a threshold.
 LARGEST = 1e150
@@ -21,6 +29,8 @@ RANGE_TEXT = "from 1e-150 to 1e150"
 #: Most poses one plan proposes (``fieldcal plan -n``, ``fieldcal.plan_poses(cal, k)``): each
 #: costs a pass over the candidates, and a plan longer than a session is planned again anyway.
 MOST_PLANNED = 100
+#: The hottest and coldest die temperature taken (°C): beyond is a wrong column or unit.
+PLAUSIBLE_C = (-80.0, 200.0)
 
 
 def in_range(value: float) -> bool:

@@ -132,6 +132,11 @@ _COLUMN_UNITS: dict[str, tuple[tuple[str, str], ...]] = {
 }
 _SI_NAMES = {"accel": "m/s^2", "gyro": "rad/s"}
 _OPTIONS = {"accel": "accel_unit (--accel-unit)", "gyro": "gyro_unit (--gyro-unit)"}
+#: The raw units a number may give (SI units per raw unit): from a 24-bit converter's count to
+#: ten g (m/s²), from a navigation gyroscope's count to a revolution per second (rad/s); a number
+#: beyond makes noise densities no sensor has.
+PHYSICAL_UNIT = {"accel": (1e-9, 1e3), "gyro": (1e-10, 1e2)}
+_SI = {"accel": "m/s^2", "gyro": "rad/s"}
 _NAMES = {"accel": "accelerometer", "gyro": "gyroscope", "mag": "magnetometer"}
 
 
@@ -557,6 +562,19 @@ def _range(fit: NoiseFit) -> str:
     return f"{a:.3g}-{b:.3g} s"
 
 
+def _check_varies(values: Array, ranges: Sequence[tuple[int, int]], sensor: str, path: str) -> None:
+    """Refuse an axis whose still readings never change: no sensor has zero noise (an ADC
+    flips at least its last count), so it is a placeholder column or a stuck sensor, and the
+    Allan fit of a zero curve has nothing to fit."""
+    for j in range(values.shape[1]):
+        if all(np.ptp(values[a:b, j]) == 0 for a, b in ranges if b > a):
+            raise InputError(
+                f"{path}: the {_NAMES[sensor]}'s {'xyz'[j]} axis reads the same value in every "
+                "still row: no noise to measure (a stuck sensor or a placeholder column); check "
+                "the columns"
+            )
+
+
 # --------------------------------------------------------------------------- units
 def _unit_name(value: str, sensor: str) -> str:
     key = value.strip().lower().replace(" ", "")
@@ -582,6 +600,13 @@ def _option_unit(value: object, sensor: str) -> tuple[str, float] | None:
         raise InputError(
             f"{_OPTIONS[sensor].split()[0]} must be a unit name or a positive number (SI "
             f"units per raw unit), got {value!r}"[:200]
+        )
+    low, high = PHYSICAL_UNIT[sensor]
+    if not low <= number <= high:
+        raise InputError(
+            f"{_OPTIONS[sensor].split()[0]} {number:.3g} is outside any sensor's raw unit "
+            f"({low:g} to {high:g} {_SI[sensor]} per raw unit); give a unit name or the "
+            "sensor's scale per count"[:300]
         )
     return "raw", number
 
@@ -854,6 +879,7 @@ def characterise_noise(
             )
             if note:
                 notes.append(note)
+            _check_varies(values, ranges, sensor, log.path)
             curve = allan_deviation(
                 [values[a:b] for a, b in ranges], hz, per_decade=per_decade, confidence=confidence
             )

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from .api import calibrate_with, check_targets, field_settings, targets_for
 from .calibration import Calibration
 from .errors import MOVING_RESTS, NO_STILL, InputError, MovingRestsWarning
+from .findings import TemperatureIgnored
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .gyro.integrate import effective_time
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
@@ -451,9 +452,21 @@ def _run_poses(
             notes=notes,
             on_progress=on_progress,
         )
-        cal = with_late_checks(cal)
-    cal = _fold_back(cal, job)
+    cal = _late(_fold_back(cal, job), log)
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
+
+
+def _late(cal: Calibration, log: Log) -> Calibration:
+    """The rules on what the fit's stages and the input added (:data:`fieldcal.trust.verdict.
+    LATE_CHECKS`: the gyroscope's gain and segments, a gain no unit explains, a temperature
+    column left out), judged on the calibration in the user's units (every path)."""
+    if log.temperature_ignored is not None:
+        column, why = log.temperature_ignored
+        ignored = TemperatureIgnored(column, why)
+        cal = dataclasses.replace(
+            cal, findings=dataclasses.replace(cal.findings, temperature_ignored=ignored)
+        )
+    return with_late_checks(cal)
 
 
 def _fold_back(cal: Calibration, job: _Job) -> Calibration:
@@ -561,7 +574,7 @@ def _run_continuous(
         targets=job.targets,
         magnitudes=job.magnitudes,
     )
-    cal = _fold_back(cal, job)
+    cal = _late(_fold_back(cal, job), log)
     traj = cal.options["trajectory"]
     notes.append(
         f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "

@@ -124,6 +124,12 @@ def parse_location(location: str | Sequence[float]) -> tuple[float, float, float
     Latitude in [−90, 90], longitude in [−180, 360) (east positive; 180–360 are folded to west),
     altitude in metres above the WGS 84 ellipsoid (default 0), from −1 km to 850 km.
     """
+    sized = hasattr(location, "__len__") and hasattr(location, "__iter__")  # a list, an array
+    if not isinstance(location, str) and (not sized or isinstance(location, bytes | dict)):
+        raise InputError(
+            f"location must be 'LAT,LON[,ALT_M]' or a sequence of 2 or 3 numbers, got "
+            f"{type(location).__name__} {location!r}"[:200]
+        )
     spec = location if isinstance(location, str) else ",".join(str(v) for v in location)
     parts = spec.split(",") if isinstance(location, str) else [str(v) for v in location]
     if len(parts) not in (2, 3):

@@ -353,6 +353,15 @@ class ReadSettings:
         default=False,
         metadata=meta("--drop-nan", "Drop rows with NaN/inf instead of failing.", valid="flag"),
     )
+    ignore_bad_temp: bool = field(
+        default=False,
+        metadata=meta(
+            "--ignore-bad-temp",
+            "Calibrate without temperature terms when the --temp-col values are unusable (NaN, "
+            "inf, not °C) instead of failing; cal.json then has the reason temperature_ignored.",
+            valid="flag",
+        ),
+    )
     decimal: str | None = field(
         default=None,
         metadata=meta(

@@ -100,6 +100,10 @@ class Store:
     """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
+        if not isinstance(path, str | os.PathLike):
+            raise InputError(
+                f"Store takes the store's folder (a str or path), got {type(path).__name__}"
+            )
         self.root = Path(path)
         if self.root.exists() and not self.root.is_dir():
             raise InputError(f"{self.root}: is not a folder; give the store's folder")

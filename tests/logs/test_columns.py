@@ -338,7 +338,8 @@ def test_detection_options_are_checked_as_values(tmp_path, options, message):
 
 @pytest.mark.parametrize("factor", [1e-30, 1e30])
 def test_the_log_path_is_scale_invariant(tmp_path, factor):
-    """Data in tiny or huge units: the same poses, gains scaled, the same verdict."""
+    """Data in tiny or huge units: the same poses, gains scaled, the same verdict but for the
+    reason that no physical unit explains the scale."""
     import fieldcal
     from fieldcal.logs import poses_from_log
     from fieldcal.pipeline import calibrate_log
@@ -355,13 +356,14 @@ def test_the_log_path_is_scale_invariant(tmp_path, factor):
     np.testing.assert_allclose(c1.accel.gain / factor, c0.accel.gain, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(c1.mag.bias / factor, c0.mag.bias, rtol=1e-9, atol=1e-12)
     assert c1.dip_deg == pytest.approx(c0.dip_deg, abs=1e-9)
-    # the field sensors' verdict is the same; a gyroscope in such units is no physical one
+    # the same verdict, and a warning that no unit explains such a scale (issue 35, S3); a
+    # gyroscope in such units is no physical one either
     gyro = ("gyro_gain", "gyro_misalignment")
-    assert [r for r in c1.verdict.reasons if r.code not in gyro] == [
-        r for r in c0.verdict.reasons if r.code not in gyro
-    ]
+    scale = [r for r in c1.verdict.reasons if r.code == "unexplained_scale"]
+    assert len(scale) >= 2 and c1.verdict.level == "warn"  # accel, mag (and gyro)
+    kept = [r for r in c1.verdict.reasons if r not in scale and r.code not in gyro]
+    assert kept == [r for r in c0.verdict.reasons if r.code not in gyro]
     assert "gyro_gain" not in c0.verdict.codes
-    assert c1.gyro is None or "gyro_gain" in c1.verdict.codes  # fitted: flagged
     assert isinstance(c1, fieldcal.Calibration)
 
 

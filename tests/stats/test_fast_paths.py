@@ -282,7 +282,10 @@ def test_powers_of_two_change_no_digit_of_the_statistics_or_the_fit(power):
     cal = fieldcal.calibrate(accel, mag)
     np.testing.assert_array_equal(cal.accel.gain, ref.accel.gain * factor)
     np.testing.assert_array_equal(cal.mag.bias, ref.mag.bias * factor)
-    assert cal.verdict == ref.verdict and cal.dip_deg == ref.dip_deg
+    # the same verdict, but for the warning that no unit explains such a scale (issue 35, S3)
+    kept = tuple(r for r in cal.verdict.reasons if r.code != "unexplained_scale")
+    assert kept == ref.verdict.reasons and cal.dip_deg == ref.dip_deg
+    assert len(kept) < len(cal.verdict.reasons)  # 2^-20, 2^37, 2^460: no unit is that
 
 
 def test_subnormal_readings_are_summarised_without_losing_their_squares():

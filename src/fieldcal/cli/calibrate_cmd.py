@@ -231,9 +231,9 @@ def export(
             force,
             folders_made=True,
         )
-        Path(output).mkdir(parents=True, exist_ok=True)
-        for name, data in files.items():
-            _files.write_bytes(Path(output) / name, data)
+        _files.make_folder(output)
+        # the files are only right together (the C library's .h and .c): all or none
+        _files.write_together({Path(output) / name: data for name, data in files.items()})
         return
     claim([output], {"calibration": cal_json}, force)
     if fmt is None:

@@ -190,6 +190,16 @@ def plan(
         click.echo(json.dumps([p.to_dict() for p in poses], indent=2, allow_nan=False))
         return
     console = open_console()
+    cannot = library.unreachable(cal, targets(given, target_dip))
+    if cannot is not None:  # no pose reaches it: said first, the poses still help
+        console.print(f"the target cannot be met: {cannot}")
+    elif poses and poses[-1].score > 1.0:
+        worst = poses[-1].score
+        ratio = f"{worst:.2f}" if worst < 1e4 else f"{worst:.1e}"
+        console.print(
+            f"the target cannot be met with {len(poses)} more pose(s): the worst predicted error "
+            f"is {ratio} times its target; plan more poses (-n) or relax the target"
+        )
     for i, pose in enumerate(poses, 1):
         console.print(f"{i}. {pose.words}")
         console.print(f"   then: {library.predicted_line(pose)}")

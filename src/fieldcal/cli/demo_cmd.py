@@ -69,7 +69,7 @@ def demo(seed: int, out_dir: str | None, no_report: bool, continuous: bool, forc
     console = open_console()
     started = time.perf_counter()
     folder = Path(out_dir) if out_dir else Path(tempfile.mkdtemp(prefix="fieldcal-demo-"))
-    folder.mkdir(parents=True, exist_ok=True)
+    _files.make_folder(folder)
     if continuous:
         _demo_continuous(console, seed, folder, with_report, no_report, started)
         return

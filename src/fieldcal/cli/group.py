@@ -19,12 +19,15 @@ import csv
 import importlib
 import importlib.util
 import os
+import signal
 import sys
+import threading
 import warnings
 import zipfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from types import FrameType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
@@ -211,7 +214,7 @@ class _Group(click.Group):
                 raise _UsageError.of(exc) from None
             except (click.ClickException, click.Abort, BrokenPipeError):
                 raise  # click's own handling (a closed pipe ends quietly)
-            except KeyboardInterrupt:
+            except KeyboardInterrupt as exc:
                 wrote = ", ".join(str(p) for p in done)
                 click.echo(
                     f"Interrupted; completed {wrote}; nothing else was written"
@@ -219,7 +222,7 @@ class _Group(click.Group):
                     else "Interrupted; nothing was written",
                     err=True,
                 )
-                ctx.exit(EXIT_INTERRUPTED)
+                ctx.exit(exc.code if isinstance(exc, Terminated) else EXIT_INTERRUPTED)
             except _USER_ERRORS as exc:
                 click.echo(f"Error: {_user_message(exc)}", err=True)
                 ctx.exit(EXIT_USAGE)
@@ -248,8 +251,21 @@ def cli() -> None:
     """
 
 
+class Terminated(KeyboardInterrupt):
+    """A kill (SIGTERM) unwinding like Ctrl-C: temporary files are removed on the way out;
+    exit code 128 + 15, as shells report it."""
+
+    code = 128 + signal.SIGTERM
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
+
+
 def main() -> None:
     """Console-script entry point."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     cli(prog_name="fieldcal")
 
 

@@ -45,6 +45,7 @@ WHERE: dict[str, str] = {
     "Targets": "..planning.next_pose",
     "plan_poses": "..planning.next_pose",
     "predicted_line": "..planning.next_pose",
+    "unreachable": "..planning.next_pose",
     "temperature_advice": "..planning.warmer_poses",
     "CaptureOptions": "..capture.live_session",
     "CaptureSession": "..capture.live_session",
@@ -99,6 +100,7 @@ __all__ = [
     "run_log",
     "simulate_continuous",
     "temperature_advice",
+    "unreachable",
     "write_noise_figure",
     "write_report",
 ]
@@ -128,7 +130,7 @@ if TYPE_CHECKING:
     from ..output.report import FIGURES, write_report
     from ..output.terminal import print_noise, print_summary, print_truth_comparison, print_verdict
     from ..pipeline import LogSettings, run_log
-    from ..planning.next_pose import Targets, plan_poses, predicted_line
+    from ..planning.next_pose import Targets, plan_poses, predicted_line, unreachable
     from ..planning.warmer_poses import temperature_advice
     from ..reference import expected_field
     from ..serialize import dumps

@@ -36,7 +36,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from ..limits import LARGEST  # checked here so the message names the row and column
+from ..limits import (
+    LARGEST,  # checked here so the message names the row and column
+    PLAUSIBLE_C,
+)
 from .columns import (
     SPELLINGS,
     explicit_columns,
@@ -98,6 +101,9 @@ class Log:
     metadata: dict[str, str] = field(default_factory=dict)
     #: the die temperature of each kept row, °C (``temp``, ``temperature``, ``t_degc`` ...)
     temperature: Array | None = None
+    #: the temperature column left out and why (``(name, why)``), when its values are unusable
+    #: and the user asked to go on (``ignore_bad_temp``; reason ``temperature_ignored``)
+    temperature_ignored: tuple[str, str] | None = None
     #: other columns that may label poses or devices (``shot``, ``position``, ``device``; see
     #: :func:`~fieldcal.logs.columns.label_columns`), each kept row's value: the advice when
     #: too few poses are found tries them
@@ -365,6 +371,7 @@ def load_log(
     need: Sequence[str] = ("accel", "mag"),
     temp_col: str | None = None,
     sensors: str | None = None,
+    ignore_bad_temp: bool = False,
     **reading: Any,
 ) -> Log:
     """Read a log and pick its sensor columns.
@@ -391,7 +398,12 @@ def load_log(
         The roles of which at least one must be found (by default accelerometer or magnetometer).
     temp_col : str, optional
         The temperature column (°C); ``temp``, ``temperature``, ``t_degc`` ... are recognised.
-        One with NaN/inf or implausible values is left out, with a note.
+        One with NaN/inf or values outside -80..200 °C (kelvins, a wrong column) is an error
+        when named here; one recognised by name is left out, with a note and the reason code
+        ``temperature_ignored``.
+    ignore_bad_temp : bool
+        Leave an unusable ``temp_col`` out (with the note and the reason code) instead of
+        refusing the log.
     sensors : {None, "accel", "mag", "both"}
         Which of accelerometer and magnetometer to read: ``"accel"`` or ``"mag"`` alone (the
         other's columns are left out), ``"both"`` (either missing is an error), or None:
@@ -426,13 +438,19 @@ def load_log(
     if time is not None:
         time, segment, time_notes = _time_axis(time, used["time"][0], index, table, split_on_reset)
         notes += time_notes
-    temperature = None
+    temperature, ignored = None, None
     if "temperature" in used:
         name = used["temperature"][0]
         temperature = table.numeric(name)[index]
-        if not (np.isfinite(temperature).all() and np.all(np.abs(temperature) < 300)):
-            notes.append(f"temperature column {name!r} has NaN/inf or implausible values: ignored")
-            temperature = None
+        why = unusable_temperature(temperature)
+        if why is not None:
+            if temp_col is not None and not ignore_bad_temp:
+                raise InputError(
+                    f"the temperature column {name!r} {why}; give it in °C with finite values "
+                    "(or pass --ignore-bad-temp to calibrate without temperature terms)"
+                )
+            notes.append(f"temperature column {name!r} {why}: ignored")
+            temperature, ignored = None, (name, why)
     taken = [c for cols in used.values() for c in cols]
     labels = {
         name: table.columns[name] if index.size == table.n_rows else table.columns[name][index]
@@ -453,8 +471,27 @@ def load_log(
         segment=segment,
         metadata=dict(getattr(table, "metadata", {})),
         temperature=temperature,
+        temperature_ignored=ignored,
         labels=labels,
     )
+
+
+def unusable_temperature(values: Array) -> str | None:
+    """Why a temperature column cannot give temperature terms (it "has ..."), or None."""
+    finite = np.isfinite(values)
+    if not finite.any():
+        return "has no finite value (all NaN or inf)"
+    if not finite.all():
+        return f"has {int((~finite).sum())} of {values.size} values NaN or inf"
+    low, high = float(values.min()), float(values.max())
+    if low >= 190.0 and high <= 420.0:  # a die between -83 and 147 °C, in kelvins
+        return f"reads {low:.4g} to {high:.4g}: kelvins, not °C (subtract 273.15)"
+    if low < PLAUSIBLE_C[0] or high > PLAUSIBLE_C[1]:
+        return (
+            f"reads {low:.4g} to {high:.4g}, outside the {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} °C "
+            "a sensor's die can have"
+        )
+    return None
 
 
 def _check_load_options(

@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .._files import same_file, write_bytes, write_text
+from .._files import make_folder, same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log, load_log
@@ -849,7 +849,7 @@ def write_report(
         raise InputError(f"{output}: is the input log {log.path}; write the report to another file")
     figures, poses = _figures(cal, log)
     if png_dir is not None:
-        Path(png_dir).mkdir(parents=True, exist_ok=True)
+        make_folder(png_dir)
     sections = []
     for k, (key, fig) in enumerate(figures.items()):
         if on_progress is not None:

@@ -608,7 +608,9 @@ def predicted_line(pose: PlannedPose) -> str:
         parts.append(f"tilt {acc.tilt_deg:.2g}°")
     if pose.dip_std_deg is not None:
         parts.append(f"dip ±{pose.dip_std_deg:.2g}°")
-    return ", ".join(parts) + f" (worst error/target {pose.score:.2f})"
+    # a target far below what any pose gives makes a ratio of hundreds of digits: the exponent
+    ratio = f"{pose.score:.2f}" if pose.score < 1e4 else f"{pose.score:.1e}"
+    return ", ".join(parts) + f" (worst error/target {ratio})"
 
 
 def targets_met(cal: Calibration, targets: Targets | None = None) -> bool:

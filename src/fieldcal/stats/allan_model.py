@@ -305,6 +305,12 @@ def fit_noise_model(
     y = np.asarray(curve.avar)
     d = y.shape[1]
     low_pass = False
+    flat = np.flatnonzero(~np.any(y > 0, axis=0))
+    if flat.size:  # a constant signal: nothing to fit (and LAPACK would say so in Fortran)
+        raise InputError(
+            f"axis {int(flat[0])} of the readings never changes (Allan variance zero at every "
+            "τ): no noise to measure; check the column (a stuck sensor or a placeholder)"
+        )
 
     def fit(start: float) -> tuple[NDArray[np.bool_], list[tuple[Any, ...]]]:
         rows = (taus >= start * (1 - 1e-12)) & (taus <= tau_max * (1 + 1e-12))

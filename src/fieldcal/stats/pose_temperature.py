@@ -16,13 +16,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._frozen import ArrayDataclass, frozen_array
+from ..limits import PLAUSIBLE_C as _PLAUSIBLE_C
 
 __all__ = ["PoseTemperature", "pose_temperatures"]
 
 Array = NDArray[np.float64]
 
 #: The hottest and coldest die temperature taken (°C): beyond is a wrong column or unit.
-PLAUSIBLE_C = (-80.0, 200.0)
+PLAUSIBLE_C = _PLAUSIBLE_C
 
 
 @dataclass(frozen=True, eq=False)

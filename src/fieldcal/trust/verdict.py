@@ -227,6 +227,17 @@ RULES: dict[str, tuple[Level, str]] = {
         "the samples between are missing: check the cable, the baud rate and that the device "
         "writes whole lines",
     ),
+    "unexplained_scale": (
+        "warn",
+        "the {sensor}'s gain is {scale:.3g} raw units per {unit}: no physical unit explains "
+        "that (expected {low:g} to {high:g}); check that the columns hold the sensor's readings "
+        "and how they were scaled",
+    ),
+    "temperature_ignored": (
+        "warn",
+        "the temperature column {column!r} was not used ({why}); the calibration has no "
+        "temperature terms: give the column in °C, or leave --temp-col out",
+    ),
 }
 
 #: Condition number of the Jacobi-scaled reduced system above which the poses are degenerate.
@@ -666,6 +677,40 @@ def _correlated(case: Case) -> Iterator[Fired]:
         )
 
 
+#: Gains (raw units per calibrated unit: g, the field's strength, rad/s) that some physical unit
+#: explains, per sensor: from the largest unit (g, tesla, rev/s) to the finest counts (20-bit
+#: ADCs, nT), with a decade of room either side.
+SCALE_RANGE = {"accel": (1e-4, 1e8), "mag": (1e-8, 1e8), "gyro": (1e-4, 1e8)}
+SCALE_UNIT = {"accel": "unit of gravity", "mag": "unit of the field's strength", "gyro": "rad/s"}
+
+
+@_owns("unexplained_scale")
+def _unexplained_scale(case: Case) -> Iterator[Fired]:
+    """Each sensor whose gain's scale (the geometric mean of its singular values, raw units
+    per calibrated unit) is outside :data:`SCALE_RANGE`: judged on the calibration in the
+    user's units (a late check: the fit itself sees normalised readings)."""
+    for s in ("accel", "mag", "gyro"):
+        sensor = getattr(case.cal, s, None)
+        if sensor is None:
+            continue
+        with np.errstate(all="ignore"):
+            sigma = np.linalg.svd(np.asarray(sensor.gain, dtype=float), compute_uv=False)
+            scale = float(np.exp(np.mean(np.log(sigma))))
+        low, high = SCALE_RANGE[s]
+        if np.isfinite(scale) and not low <= scale <= high:
+            name = SENSOR_NAME.get(s, "gyroscope")
+            numbers = {"sensor": name, "scale": scale, "unit": SCALE_UNIT[s]}
+            yield "unexplained_scale", {**numbers, "low": low, "high": high}
+
+
+@_owns("temperature_ignored")
+def _temperature_ignored(case: Case) -> Iterator[Fired]:
+    """A temperature column left out as unusable (``--ignore-bad-temp``)."""
+    found = case.cal.findings.temperature_ignored
+    if found is not None:
+        yield "temperature_ignored", {"column": found.column, "why": found.why}
+
+
 @_owns("temperature_span")
 def _temperature_span(case: Case) -> Iterator[Fired]:
     """A temperature column whose span was too small for temperature terms
@@ -780,9 +825,16 @@ CHECKS: tuple[Check, ...] = (
     _gyro_segments,
     _motion,
 )
-#: The rules on what a stage after the fit adds (the gyroscope of a pose calibration), applied
-#: by :func:`with_late_checks` to the verdict the fit was judged with.
-LATE_CHECKS: tuple[Check, ...] = (_gyro_gain, _gyro_segments)
+#: The rules judged on the finished calibration in the user's units, after every stage of a
+#: path (the gyroscope of a pose calibration, the input's own findings), applied by
+#: :func:`with_late_checks` to the verdict the fit was judged with (a reason already there is
+#: not given twice).
+LATE_CHECKS: tuple[Check, ...] = (
+    _gyro_gain,
+    _gyro_segments,
+    _unexplained_scale,
+    _temperature_ignored,
+)
 
 _ORDER = {"fail": 2, "warn": 1, "note": 0}
 #: The verdict of a worst reason level (``_ORDER``'s number; a note leaves it at pass).
@@ -846,6 +898,7 @@ def with_late_checks(cal: Calibration) -> Calibration:
         return cal
     case = Case(cal, None, None)
     added = [reason(code, **values) for check in LATE_CHECKS for code, values in check(case)]
+    added = [r for r in added if r not in cal.verdict.reasons]  # judged already (continuous)
     if not added:
         return cal
     return dataclasses.replace(cal, verdict=_merged(cal.verdict, added))

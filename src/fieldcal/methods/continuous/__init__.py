@@ -305,7 +305,12 @@ def _inputs(time: ArrayLike, accel: ArrayLike, mag: ArrayLike, gyro: ArrayLike, 
     a = _array("accel", accel, n, 3)
     m = _array("mag", mag, n, 3)
     g = _array("gyro", gyro, n, 3)
-    if n < 3 or np.any(np.diff(t) <= 0):
+    if n < 3:  # not a question of order: there is no motion in so few rows
+        raise InputError(
+            f"the log has {n} data row(s); continuous calibration needs at least "
+            f"{MIN_SECONDS:g} s of turning through every orientation (or a log of still poses)"
+        )
+    if np.any(np.diff(t) <= 0):
         raise InputError(
             "the time column must increase strictly from row to row (sort the log, spread "
             "bursts or give --rate)"

@@ -17,12 +17,14 @@ calibrated units; ``C_s = M_s Σ_s M_sᵀ`` a sensor's per-sample noise covarian
   (``accel_norm_tol = max(4 sqrt(tr(C_a)/3), 0.01 g)``: a sample is used when ``||a| − g| <= t``,
   and an acceleration up to ``t`` tilts the measured down direction by up to ``t/g``);
 - a block of ``B`` samples gives ``d² = z_norm² + z_dip²`` with each ``z`` the block mean's
-  error over its standard deviation ``sqrt(var_fixed + var_sample/B)``: chi-square with 2
-  degrees of freedom on a calibration that holds. The alarm compares the mean ``d²`` of the
-  last ``W`` blocks with ``monitor_threshold = −2 ln α``, the chi-square (2 dof) quantile
-  ``1 − α``: when the blocks are independent the mean is ``χ²(2W)/W`` and the rate is far below
-  ``α``; when they are the same (a device at rest) it is ``α``, so ``α`` bounds the false alarms
-  per block.
+  error over its standard deviation ``sqrt(var_fixed + var_sample/B)``. The alarm compares the
+  mean ``d²`` of the last ``W`` blocks with ``monitor_threshold``, the ``1 − α`` quantile of that
+  mean for a device at rest, the worst case: the fixed parts (pose-level error, the
+  calibration's own; for the dip without the acceleration allowance, none at rest) shared by
+  the whole window, the samples' noise independent from block to block
+  (:func:`rest_threshold`; ``−2 ln α`` when everything is shared). In motion the blocks see
+  different orientations and false alarms are rarer still, so ``α`` bounds the false alarms
+  per block (docs/microcontroller.md: the figures of ``benchmarks/monitor_alarm.py``).
 
 Temperature terms (``docs/methods/temperature.md``), when the calibration has them: each
 sensor's ``<sensor>_temp[12]`` holds ``T_ref, T_min, T_max`` and ``c1, c2, c3`` (3 each, raw units
@@ -83,6 +85,9 @@ CONTENT = (
 FILES = ("fieldcal_cal.h", "fieldcal_cal.c")
 #: The monitor's false-alarm rate per block (at most; see the module docstring).
 ALPHA = 1e-3
+#: Samples per block and blocks per decision (``FIELDCAL_MONITOR_BLOCK``, ``_WINDOW``).
+BLOCK = 16
+WINDOW = 8
 #: The hard iron's random walk per update, relative to the field (``hard_iron_q = (w F)²``):
 #: about 1 % of the field after 100 updates (a few minutes of motion), so a slow drift is
 #: followed; a sudden change needs ``fieldcal_hardiron_widen``.
@@ -96,6 +101,16 @@ _VERSION = 1
 VERSION_TEMPERATURE = 2
 N_FLOATS_TEMPERATURE = N_FLOATS + 36
 _FLAGS = {"accel": 1, "mag": 2, "gyro": 4, "declination": 8, "monitor": 16, "temperature": 32}
+#: The bounds ``fieldcal_check`` applies (``FIELDCAL_*`` in the header; docs/microcontroller.md).
+MATRIX_RANGE = (1e-12, 1e12)
+CONDITION_MAX = 1e4
+BIAS_MAX = 1e6
+NORM_RANGE = (1e-9, 1e9)
+VAR_MIN = 1e-14
+#: The floor the export gives the monitor's per-sample variances and the hard iron's (times
+#: ``F²`` for the norm and the hard iron, rad² for the dip): float32 resolves no finer, and a
+#: zero variance is one ``fieldcal_check`` refuses.
+VAR_FLOOR = 1e-12
 #: The float fields of ``fieldcal_cal_t`` in blob order, with their lengths.
 _LAYOUT = (
     ("accel_matrix", 9),
@@ -124,6 +139,59 @@ _TEMPERATURE_LAYOUT = (("accel_temp", 12), ("mag_temp", 12), ("gyro_temp", 12))
 def _layout(cal: Calibration) -> tuple[tuple[str, int], ...]:
     """The float fields of this calibration's ``fieldcal_cal_t``, in blob order."""
     return _LAYOUT + (_TEMPERATURE_LAYOUT if temperature_terms(cal) else ())
+
+
+def _known_flags(thermal: bool) -> int:
+    """``FIELDCAL_KNOWN_FLAGS``: every flag this library's calibration may carry."""
+    return sum(v for k, v in _FLAGS.items() if thermal or k != "temperature")
+
+
+def _hard_iron_prior(cov: Array, F: float) -> Array:
+    """The prior as ``fieldcal_check`` accepts it: symmetric (bit for bit), each variance within
+    ``[VAR_FLOOR F², F²]`` (a hard iron uncertain by more than the field says nothing more),
+    positive-definite with a margin (else its correlations are dropped, as the device does)."""
+    var = np.diag(cov)
+    std = np.sqrt(np.clip(var, VAR_FLOOR * F**2, F**2))
+    corr = np.eye(3)
+    if np.all(var > 0):
+        corr = 0.5 * (cov + cov.T) / np.sqrt(np.outer(var, var))
+        np.fill_diagonal(corr, 1.0)
+        if np.abs(corr - np.eye(3)).max() >= 1.0 - 1e-6 or np.linalg.det(corr) < 1e-5:
+            corr = np.eye(3)
+    upper = np.triu(corr * np.outer(std, std))
+    return np.asarray(upper + np.triu(upper, 1).T, dtype=float)
+
+
+def _plausible(flags: int, fields: dict[str, Array]) -> None:
+    """Refuse what ``fieldcal_check`` would refuse on the device (the same rules, in float64 on
+    the float32 values): an export the device cannot load is an error here, not a silent
+    fallback to nothing there."""
+    for name in ("accel", "mag", "gyro"):
+        if not flags & _FLAGS[name]:
+            continue
+        M = fields[f"{name}_matrix"].astype(np.float32).astype(float).reshape(3, 3)
+        largest = float(np.abs(M).max())
+        if not MATRIX_RANGE[0] <= largest <= MATRIX_RANGE[1]:
+            raise InputError(
+                f"cannot export c-library: the {name} correction's largest entry {largest:.3g} "
+                f"is outside {MATRIX_RANGE[0]:g}..{MATRIX_RANGE[1]:g} (the gain is not a sensor's)"
+            )
+        if np.linalg.cond(M, "fro") > 0.9 * CONDITION_MAX:
+            raise InputError(
+                f"cannot export c-library: the {name} gain is (nearly) singular: condition "
+                f"number {np.linalg.cond(M):.3g}, the device accepts at most {CONDITION_MAX:g}"
+            )
+        biases = [fields[f"{name}_bias"]]
+        if f"{name}_temp" in fields:  # the bias at both ends of the temperature span
+            temp = fields[f"{name}_temp"]
+            for end in (temp[1], temp[2]):
+                u = end - temp[0]
+                biases.append(biases[0] + temp[3:6] * u + temp[6:9] * u**2 + temp[9:12] * u**3)
+        if max(float(np.abs(M @ b).max()) for b in biases) > BIAS_MAX:
+            raise InputError(
+                f"cannot export c-library: the {name} bias is more than {BIAS_MAX:g} calibrated "
+                "units: not a sensor's"
+            )
 
 
 def _isotropic(M: Array, cov: Array) -> float:
@@ -156,15 +224,87 @@ def _monitor(cal: Calibration, inv: dict[str, Array]) -> dict[str, float | Array
         "gravity_norm": g,
         "field_norm": F,
         "dip_deg": float(cal.dip_deg or 0.0),
-        "norm_var_sample": var_m,
+        "norm_var_sample": max(var_m, VAR_FLOOR * F**2),
         "norm_var_fixed": pose_m + (rel * F) ** 2,
-        "dip_var_sample": var_m / F**2 + var_a / g**2,
+        "dip_var_sample": max(var_m / F**2 + var_a / g**2, VAR_FLOOR),
         "dip_var_fixed": pose_m / F**2 + pose_a / g**2 + dip_std**2 + (tol / g) ** 2 / 3.0,
         "accel_norm_tol": tol,
-        "monitor_threshold": -2.0 * math.log(ALPHA),
-        "hard_iron_cov": Mm @ bias_cov @ Mm.T,
+        "monitor_threshold": rest_threshold(
+            (pose_m + (rel * F) ** 2, var_m),
+            (pose_m / F**2 + pose_a / g**2 + dip_std**2, var_m / F**2 + var_a / g**2),
+            (pose_m + (rel * F) ** 2, var_m),
+            (
+                pose_m / F**2 + pose_a / g**2 + dip_std**2 + (tol / g) ** 2 / 3.0,
+                var_m / F**2 + var_a / g**2,
+            ),
+        ),
+        "hard_iron_cov": _hard_iron_prior(Mm @ bias_cov @ Mm.T, F),
         "hard_iron_q": (HARD_IRON_WALK * F) ** 2,
     }
+
+
+def _mass(scale: float, dof: int, edges: Array) -> Array:
+    """The probability of each bin between ``edges`` of ``scale`` times a chi-square."""
+    from scipy.stats import chi2
+
+    return np.asarray(np.diff(chi2.cdf(edges / scale, dof)), dtype=float)
+
+
+def rest_threshold(
+    norm: tuple[float, float],
+    dip: tuple[float, float],
+    norm_model: tuple[float, float] | None = None,
+    dip_model: tuple[float, float] | None = None,
+    alpha: float = ALPHA,
+) -> float:
+    """The monitor's threshold: the ``1 − alpha`` quantile of its statistic (the mean ``d²`` of
+    :data:`WINDOW` blocks of :data:`BLOCK` samples) for a device at rest, its worst case.
+
+    Each channel's block mean errs by a part that a rest shares over the whole window (the
+    pose-level error and the calibration's own, variance ``v``) plus the samples' noise
+    (``s``, independent from block to block); the statistic divides by the model's variance
+    ``v_m + s_m/B`` (for the dip, ``v_m`` also allows for the tilt that accelerations within
+    the gate cause: none at rest). So a channel contributes ``c [ρ + (1 − ρ)/W] χ²(1) + c (1 −
+    ρ)/W χ²(W − 1)`` with ``ρ = v/(v + s/B)`` and ``c = (v + s/B)/(v_m + s_m/B)``; the
+    quantile of the sum of the four terms is found by convolving their distributions.
+    In motion, blocks see different orientations (their shared parts decorrelate) and false
+    alarms are rarer still. With every part shared (``ρ = 1``, ``c = 1``) this is ``−2 ln
+    alpha``, the threshold of a single block.
+
+    Parameters
+    ----------
+    norm, dip : (float, float)
+        ``(v, s)`` of each channel at rest.
+    norm_model, dip_model : (float, float), optional
+        ``(v_m, s_m)`` the statistic divides by (default: ``norm``, ``dip``).
+    alpha : float
+        False alarms per block.
+
+    Returns
+    -------
+    float
+    """
+    from scipy.signal import fftconvolve
+    from scipy.stats import chi2
+
+    terms: list[tuple[float, int]] = []
+    for (v, s), (vm, sm) in ((norm, norm_model or norm), (dip, dip_model or dip)):
+        total, model = v + s / BLOCK, vm + sm / BLOCK
+        if not (total > 0 and model > 0):
+            continue
+        rho, c = v / total, total / model
+        terms += [(c * (rho + (1 - rho) / WINDOW), 1), (c * (1 - rho) / WINDOW, WINDOW - 1)]
+    terms = [(a, k) for a, k in terms if a > 1e-12]
+    if not terms:
+        return -2.0 * math.log(alpha)
+    top = sum(a * chi2.ppf(1 - alpha / 10, k) for a, k in terms)  # beyond the quantile
+    edges = np.linspace(0.0, top, 40_001)
+    mass = np.array([1.0])
+    for a, k in terms:
+        mass = fftconvolve(mass, _mass(a, k, edges))[: len(edges) - 1]
+    survival = 1.0 - np.cumsum(np.clip(mass, 0.0, None))
+    # the upper edge of the first bin where the survival drops below alpha (errs on the safe side)
+    return float(edges[1:][np.argmax(survival <= alpha)])
 
 
 def sensor_id_of(cal: Calibration) -> int:
@@ -223,6 +363,7 @@ def factory(cal: Calibration, sensor_id: int | None = None) -> tuple[int, int, d
     for key, value in fields.items():
         if not (np.isfinite(value).all() and np.all(np.abs(value) <= big)):
             raise InputError(f"cannot export c-library: {key} does not fit a C float")
+    _plausible(flags, fields)
     return sid, flags, fields
 
 
@@ -285,43 +426,111 @@ _TEMPERATURE_FIELDS = """\
     float accel_temp[12], mag_temp[12], gyro_temp[12];"""
 _TEMPERATURE_API = """\
 /* The same with the die temperature t (deg C): the bias at t (FIELDCAL_HAS_TEMPERATURE;
- * a sensor without temperature terms has zero coefficients, so t changes nothing). */
-void fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3]);
-void fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
-void fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
-void fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);"""
+ * a sensor without temperature terms has zero coefficients, so t changes nothing).
+ * FIELDCAL_ERR_VALUE (out NaN) for a non-finite t, raw or result. */
+int fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3]);
+int fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
+int fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);
+int fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3]);"""
 _TEMPERATURE_CODE = """\
 
 /* TEMPERATURE_FORMULA */
-void fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3])
+int fieldcal_bias_at(const float temp[12], const float b[3], float t, float out[3])
 {
-    const float u = (t < temp[1] ? temp[1] : (t > temp[2] ? temp[2] : t)) - temp[0];
+    float u;
     int j;
+    if (out == NULL) {
+        return FIELDCAL_ERR_VALUE;
+    }
+    if (temp == NULL || b == NULL || !isfinite(t)) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_VALUE;
+    }
+    u = (t < temp[1] ? temp[1] : (t > temp[2] ? temp[2] : t)) - temp[0];
     for (j = 0; j < 3; j++) {
         out[j] = b[j] + ((temp[9 + j] * u + temp[6 + j]) * u + temp[3 + j]) * u;
     }
+    if (!fc_finite3(out)) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_VALUE;
+    }
+    return FIELDCAL_OK;
 }
 
-void fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+/* A sensor's terms: a span within -273.15..1000 deg C, the bias at both ends within bounds. */
+static int fc_temperature_ok(const float temp[12], const float M[9], const float b[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->accel_temp, cal->accel_bias, t, b);
-    fieldcal_apply(cal->accel_matrix, b, raw, out);
+    float bt[3], mb[3];
+    int k, i;
+    if (!(temp[0] >= -273.15f && temp[0] <= 1000.0f && temp[1] >= -273.15f &&
+          temp[1] <= temp[2] && temp[2] <= 1000.0f)) {
+        return 0;
+    }
+    for (k = 1; k <= 2; k++) {
+        if (fieldcal_bias_at(temp, b, temp[k], bt) != FIELDCAL_OK) {
+            return 0;
+        }
+        fc_mul(M, bt, mb);
+        for (i = 0; i < 3; i++) {
+            if (!(fabsf(mb[i]) <= FIELDCAL_BIAS_MAX)) {
+                return 0;
+            }
+        }
+    }
+    return 1;
 }
 
-void fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+static int fc_sensor_at(int has, const float temp[12], const float M[9], const float b[3],
+                        const float raw[3], float t, float out[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->mag_temp, cal->mag_bias, t, b);
-    fieldcal_apply(cal->mag_matrix, b, raw, out);
+    float bt[3];
+    int rc;
+    if (out == NULL) {
+        return FIELDCAL_ERR_VALUE;
+    }
+    if (!has) {
+        fc_nan3(out);
+        return FIELDCAL_ERR_MISSING;
+    }
+    rc = fieldcal_bias_at(temp, b, t, bt);
+    return rc == FIELDCAL_OK ? fieldcal_apply(M, bt, raw, out) : rc;
 }
 
-void fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+int fieldcal_accel_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
 {
-    float b[3];
-    fieldcal_bias_at(cal->gyro_temp, cal->gyro_bias, t, b);
-    fieldcal_apply(cal->gyro_matrix, b, raw, out);
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_ACCEL) != 0u, cal->accel_temp,
+                        cal->accel_matrix, cal->accel_bias, raw, t, out);
+}
+
+int fieldcal_mag_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+{
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_MAG) != 0u, cal->mag_temp, cal->mag_matrix,
+                        cal->mag_bias, raw, t, out);
+}
+
+int fieldcal_gyro_at(const fieldcal_cal_t *cal, const float raw[3], float t, float out[3])
+{
+    if (cal == NULL) {
+        return fc_sensor_at(0, NULL, NULL, NULL, raw, t, out);
+    }
+    return fc_sensor_at((cal->flags & FIELDCAL_HAS_GYRO) != 0u, cal->gyro_temp,
+                        cal->gyro_matrix, cal->gyro_bias, raw, t, out);
 }""".replace("TEMPERATURE_FORMULA", TEMPERATURE_FORMULA)
+_TEMPERATURE_CHECK = """\
+    if (((flags & FIELDCAL_HAS_ACCEL) &&
+         !fc_temperature_ok(cal->accel_temp, cal->accel_matrix, cal->accel_bias)) ||
+        ((flags & FIELDCAL_HAS_MAG) &&
+         !fc_temperature_ok(cal->mag_temp, cal->mag_matrix, cal->mag_bias)) ||
+        ((flags & FIELDCAL_HAS_GYRO) &&
+         !fc_temperature_ok(cal->gyro_temp, cal->gyro_matrix, cal->gyro_bias))) {
+        return FIELDCAL_ERR_VALUE;
+    }"""
 _TEMPERATURE_BLOB = """\
     for (i = 0; i < 12; i++) f[n++] = &c->accel_temp[i];
     for (i = 0; i < 12; i++) f[n++] = &c->mag_temp[i];
@@ -359,11 +568,16 @@ def files(cal: Calibration, sensor_id: int | None = None) -> dict[str, str]:
         "TEMPERATURE_API": _TEMPERATURE_API if thermal else "",
         "TEMPERATURE_CODE": _TEMPERATURE_CODE if thermal else "",
         "TEMPERATURE_BLOB": _TEMPERATURE_BLOB if thermal else "",
+        "TEMPERATURE_CHECK": _TEMPERATURE_CHECK if thermal else "",
+        "KNOWN_FLAGS": f"0x{_known_flags(thermal):x}u",
         "FACTORY": _initializer(sid, flags, fields),
     }
     header = _fill(_source("fieldcal_cal.h"), parts)
     source = _fill(_source("fieldcal_cal.c"), parts)
-    return {"fieldcal_cal.h": header, "fieldcal_cal.c": source}
+    # the pair's mark (FIELDCAL_PAIR_ID): a digest of both texts, so a header from another
+    # export (another calibration, another fieldcal) stops the build with #error
+    pair = {"PAIR_ID": f"0x{zlib.crc32((header + source).encode('utf-8')):08x}u"}
+    return {"fieldcal_cal.h": _fill(header, pair), "fieldcal_cal.c": _fill(source, pair)}
 
 
 def write(cal: Calibration, sensor_id: int | None = None) -> str:
