@@ -92,7 +92,7 @@ def encode(value: object) -> Any:
 _LEAF = json.JSONEncoder(allow_nan=False).encode
 
 
-def dumps(value: Any, indent: int | None = 2) -> str:
+def dumps(value: object, indent: int | None = 2) -> str:
     """JSON text of an :func:`encode`-d document laid out for reading: an object one key per
     line, a list of numbers or words on one line, a list of lists or objects one item per line
     (a matrix one row per line, each row from one call of the json module's C encoder). The
@@ -106,7 +106,7 @@ def dumps(value: Any, indent: int | None = 2) -> str:
     return "".join(parts)
 
 
-def _lay_out(value: Any, level: int, indent: int, out: list[str]) -> None:
+def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
     inner = "\n" + " " * (indent * (level + 1))
     if isinstance(value, dict) and value:
         sep = "{"
