@@ -588,6 +588,7 @@ class Calibration(ArrayDataclass):
     def to_dict(self) -> dict[str, Any]:
         """The JSON document as Python objects (see ``docs/json-schema.md``)."""
         body = encode(self)
+        assert isinstance(body, dict)  # a dataclass encodes as an object
         header = {
             "schema": SCHEMA,
             "schema_version": SCHEMA_VERSION,
