@@ -82,7 +82,7 @@ class NoiseModel(ArrayDataclass):
     reduced_chi2: Array
     low_pass: bool = False
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         """The fitted values as plain numbers and lists, for JSON."""
         return {
             "noise_density": self.noise_density.tolist(),
