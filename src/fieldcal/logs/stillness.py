@@ -32,7 +32,6 @@ import math
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -98,7 +97,7 @@ class StillResult:
         }
 
 
-def _bounds(n: int, segment: NDArray[np.integer[Any]] | None) -> NDArray[np.int64]:
+def _bounds(n: int, segment: NDArray[np.int64] | None) -> NDArray[np.int64]:
     """First rows of the segments after the first (where ``segment`` changes); empty for one."""
     if segment is None:
         return np.empty(0, dtype=np.int64)
@@ -160,9 +159,7 @@ def _window_means(
     return means
 
 
-def moving_variance(
-    x: Array, window: int, segment: NDArray[np.integer[Any]] | None = None
-) -> Array:
+def moving_variance(x: Array, window: int, segment: NDArray[np.int64] | None = None) -> Array:
     """Sum over columns of the variance in a centred window (truncated at the ends and, when
     ``segment`` is given, where it changes), O(n)."""
     x = np.asarray(x, dtype=float)
@@ -367,7 +364,7 @@ def detect_still(
     floor_quantile: float = 0.1,
     max_gap: float | None = None,
     merge_sigma: float = 5.0,
-    segment: NDArray[np.integer[Any]] | None = None,
+    segment: NDArray[np.int64] | None = None,
 ) -> StillResult:
     """Find the intervals in which the device rests.
 
