@@ -34,7 +34,7 @@ import numbers
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, TypedDict
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -318,7 +318,7 @@ def _grouped(log: Log) -> tuple[Rows | None, Rows, list[str]]:
     return rows[sort], counts, [_label(v) for v in values[order].tolist()]
 
 
-def _label_runs(log: Log, labels: NDArray[Any]) -> tuple[Rows, list[str]] | None:
+def _label_runs(log: Log, labels: NDArray[np.generic]) -> tuple[Rows, list[str]] | None:
     """The counts and labels of every row labelled, each label in one run of rows (as a
     logger writes the poses one after the other): :func:`_grouped`'s answer without sorting
     the labels or gathering the rows; None when a label comes back after another."""

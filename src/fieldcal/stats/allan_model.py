@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -206,9 +206,11 @@ def _octave_density(m: NDArray[np.int64]) -> Array:
     return np.maximum(hi - lo, 1).astype(float)
 
 
-def _fit_axis(
-    X: Array, y: Array, m: NDArray[np.int64], edfs: Array
-) -> tuple[Array, NDArray[np.bool_], Array, Array, float]:
+#: One axis's fit (:func:`_fit_axis`).
+_AxisFit: TypeAlias = tuple[Array, NDArray[np.bool_], Array, Array, float]
+
+
+def _fit_axis(X: Array, y: Array, m: NDArray[np.int64], edfs: Array) -> _AxisFit:
     """Iteratively reweighted, non-negative weighted least squares of one axis (the rows to
     fit only), then the sandwich covariance: parameters ``(N², B², K²)``, free mask, their
     covariance, EDF (k,), χ² per degree of freedom.
@@ -306,7 +308,7 @@ def fit_noise_model(
     d = y.shape[1]
     low_pass = False
 
-    def fit(start: float) -> tuple[NDArray[np.bool_], list[tuple[Any, ...]]]:
+    def fit(start: float) -> tuple[NDArray[np.bool_], list[_AxisFit]]:
         rows = (taus >= start * (1 - 1e-12)) & (taus <= tau_max * (1 + 1e-12))
         if int(rows.sum()) < 3:
             raise InputError(
