@@ -87,8 +87,8 @@ def gyro_stage(
         return skip("it needs the accelerometer (the gravity directions) to be calibrated")
     if log.time is not None and rate is None:
         time = log.time
-    elif rate is not None or log.rate is not None:
-        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
+    elif (hz := rate or log.rate) is not None:
+        time = np.arange(log.n) / float(hz)
     else:
         return skip("the log has no time column; give one or the sample rate (--rate)")
     dropped = {r.index for r in cal.rejected}

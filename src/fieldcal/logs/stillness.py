@@ -205,8 +205,9 @@ def scale_of(x: Array) -> float:
 
 def _real(value: object, name: str, *, minimum: float, inclusive: bool = True) -> float:
     """A finite real number ``>= minimum`` (``> minimum`` unless ``inclusive``)."""
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
-    number = float(value) if ok else math.nan  # type: ignore[arg-type]  # checked just above
+    number = math.nan  # anything but a real number (a bool is not one here) fails below
+    if not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real):
+        number = float(value)
     if not (math.isfinite(number) and (number >= minimum if inclusive else number > minimum)):
         bound = f"at least {minimum:g}" if inclusive else f"above {minimum:g}"
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}"[:200])
