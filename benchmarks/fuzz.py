@@ -838,7 +838,7 @@ def _file_case(
 GOOD_OPTIONS: dict[str, list[str]] = {
     "--window": ["0.3", "0.5", "1"],
     "--min-still": ["0.5", "1", "1.5"],
-    "--trim": ["0", "0.1", "0.2"],
+    "--still-trim": ["0", "0.1", "0.2"],
     "--still-threshold": ["0.05", "0.2", "0.5"],
     "--rate": ["50", "100", "25"],
     "--gravity": ["9.80665", "1", "0.5"],
@@ -862,7 +862,7 @@ def _option_values(rng: np.random.Generator) -> dict[str, list[str]]:
     return {
         "--window": numbers,
         "--min-still": numbers,
-        "--trim": numbers,
+        "--still-trim": numbers,
         "--still-threshold": numbers,
         "--rate": numbers,
         "--gravity": numbers,
@@ -1433,7 +1433,7 @@ CALIBRATE_OPTIONS: dict[str, list[Any]] = {
     ],
     "robust": [True, False, "yes", 1, 0, None, np.bool_(True)],
     "false_alarm": [0.01, 0, 1, -0.1, NAN, "0.01", True, 1e-300, 0.999999, np.float16(0.1)],
-    "trim": [None, True, False, "no", 1],
+    "cut_unsteady": [None, True, False, "no", 1],
     "body_frame": ["accel", "mag", "gyro", None, 1],
     "mag_mirrored": [False, True, "yes", 1, np.bool_(False), None, "false"],
     "on_progress": [None, 1, "x", (lambda line: None)],

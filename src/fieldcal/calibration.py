@@ -23,7 +23,7 @@ import functools
 import importlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, cast
 
@@ -41,7 +41,7 @@ from .covariance import (
     _bias_names,
     _gain_names,
 )
-from .findings import Findings
+from .findings import Findings, GyroSegment
 from .geometry.frames import (
     dip_of,
     misalignment_angle_deg,
@@ -264,7 +264,7 @@ class Calibration(ArrayDataclass):
     rejected: tuple[RejectedPose, ...] = ()
     accuracy: Accuracy | None = None
     gyro: SensorCalibration | None = None
-    gyro_segments: tuple[dict[str, Any], ...] = field(default=(), repr=False)
+    gyro_segments: tuple[GyroSegment, ...] = field(default=(), repr=False)
     findings: Findings = field(default_factory=Findings, repr=False)
     field_reference: FieldReference | None = field(
         default=None, repr=False, metadata={"key": "reference"}
@@ -288,7 +288,8 @@ class Calibration(ArrayDataclass):
             if (value := getattr(self, name)) is not None:
                 object.__setattr__(self, name, frozen_array(value))
         object.__setattr__(self, "poses", tuple(dict(p) for p in self.poses))
-        object.__setattr__(self, "gyro_segments", tuple(dict(p) for p in self.gyro_segments))
+        segments = tuple(cast(GyroSegment, dict(p)) for p in self.gyro_segments)
+        object.__setattr__(self, "gyro_segments", segments)
         object.__setattr__(self, "rejected", tuple(self.rejected))
         object.__setattr__(self, "iterations", int(self.iterations))
         object.__setattr__(self, "converged", bool(self.converged))
@@ -511,7 +512,7 @@ class Calibration(ArrayDataclass):
         )
 
     def with_raw_scale(
-        self, scales: Mapping[str, float], *, options: Mapping[str, Any] | None = None
+        self, scales: Mapping[str, float], *, options: Mapping[str, object] | None = None
     ) -> Calibration:
         """The same calibration for raw readings multiplied by ``scales[sensor]``.
 
@@ -571,13 +572,14 @@ class Calibration(ArrayDataclass):
         accel_frame = bool(np.abs(Ka - Ka.T).max() <= 1e-9 * np.abs(Ka).max())  # symmetric
         name = "mag" if accel_frame else "accel"
         sensor: SensorCalibration = getattr(self, name)
-        flipped: Any = dataclasses.replace(sensor, gain=-sensor.gain)
+        flipped = dataclasses.replace(sensor, gain=-sensor.gain)
         h, covariance = self.magnetic, self.covariance
         if covariance is not None:
             covariance = covariance.scaled({f"{name}.gain": -1.0, "dip_deg": -1.0})
         return dataclasses.replace(
             self,
-            **{name: flipped},
+            accel=flipped if name == "accel" else self.accel,
+            mag=flipped if name == "mag" else self.mag,
             magnetic=np.array([h[0], h[1], -h[2]]),
             rotations=self.rotations @ twin_flip(name),
             covariance=covariance,
@@ -588,6 +590,7 @@ class Calibration(ArrayDataclass):
     def to_dict(self) -> dict[str, Any]:
         """The JSON document as Python objects (see ``docs/json-schema.md``)."""
         body = encode(self)
+        assert isinstance(body, dict)  # a dataclass encodes as an object
         header = {
             "schema": SCHEMA,
             "schema_version": SCHEMA_VERSION,
@@ -687,7 +690,9 @@ class Calibration(ArrayDataclass):
 SMALLEST_GAIN = 1e-200
 
 
-def _at_a_glance(cal: Calibration, named: list[Any], gains: Array, singular: Array) -> bool:
+def _at_a_glance(
+    cal: Calibration, named: Sequence[tuple[str, SensorCalibration]], gains: Array, singular: Array
+) -> bool:
     """Whether every check of :meth:`Calibration.check_values` passes, in a few operations on
     all sensors at once (``gains`` finite, ``singular`` their singular values); ``False`` sends
     the checks one by one, to name the first problem. NaN fails every comparison."""
@@ -711,7 +716,7 @@ def _at_a_glance(cal: Calibration, named: list[Any], gains: Array, singular: Arr
     )
 
 
-def _check_range(name: str, gain: Array, bias: Array, singular: NDArray[np.floating[Any]]) -> None:
+def _check_range(name: str, gain: Array, bias: Array, singular: Array) -> None:
     """Gain and bias entries within :data:`~fieldcal.limits.LARGEST`, a gain's scale at least
     :data:`SMALLEST_GAIN`, naming the key; ``singular``: the gain's singular values."""
     for part, values in (("gain", gain), ("bias", bias)):

@@ -23,9 +23,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import InputError
 
@@ -38,6 +39,63 @@ __all__ = [
     "parameter_values",
     "temperature_values",
 ]
+
+
+Array = NDArray[np.float64]
+
+
+# What this module reads of a calibration, its sensors, their temperature models and the
+# covariance: those classes live above it (fieldcal.calibration, fieldcal.thermal,
+# fieldcal.covariance), which call it.
+class _TemperatureModel(Protocol):
+    @property
+    def reference(self) -> float: ...
+    @property
+    def coefficients(self) -> Array: ...
+    @property
+    def span(self) -> Array: ...
+    @property
+    def order(self) -> int: ...
+    def shift(self, temperature: float) -> Array: ...
+
+
+class _Sensor(Protocol):
+    @property
+    def gain(self) -> Array: ...
+    @property
+    def bias(self) -> Array: ...
+    @property
+    def temperature(self) -> _TemperatureModel | None: ...
+
+
+class _Covariance(Protocol):
+    @property
+    def names(self) -> tuple[str, ...]: ...
+    @property
+    def matrix(self) -> Array: ...
+    def index(self, name: str) -> int: ...
+    def std(self, name: str) -> float: ...
+
+
+class Calibrated(Protocol):
+    """What a comparison reads of a :class:`fieldcal.Calibration` (its sensors by name,
+    ``accel``, ``mag``, ``gyro``, through ``getattr``)."""
+
+    @property
+    def dip_deg(self) -> float | None: ...
+    @property
+    def gravity_norm(self) -> float | None: ...
+    @property
+    def field_strength(self) -> float | None: ...
+    @property
+    def options(self) -> Mapping[str, object]: ...
+    @property
+    def covariance(self) -> _Covariance | None: ...
+
+
+def _sensor(cal: Calibrated, name: str) -> _Sensor | None:
+    part: _Sensor | None = getattr(cal, name)
+    return part
 
 
 @dataclass(frozen=True)
@@ -83,7 +141,7 @@ class Comparison:
         """The parameters whose change exceeds ``sigmas`` combined standard errors."""
         return tuple(c for c in self.changes if abs(c.z) > self.sigmas)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         return {
             "sigmas": self.sigmas,
             "temperature_c": dict(self.temperature),
@@ -95,7 +153,7 @@ class Comparison:
         }
 
 
-def _reexpansion(model: Any, temperature: float) -> np.ndarray:
+def _reexpansion(model: _TemperatureModel, temperature: float) -> np.ndarray:
     """``A`` (K+1, K+1): ``(b, c_1, …, c_K)`` about ``T_ref`` to the same polynomial about
     ``T_c`` (``temperature`` clipped to the span, as the model holds it beyond):
     ``c'_k = Σ_{j≥k} C(j, k) δ^(j−k) c_j`` with ``δ = T_c − T_ref`` (``c_0 = b``)."""
@@ -108,18 +166,20 @@ def _reexpansion(model: Any, temperature: float) -> np.ndarray:
     return A
 
 
-def _theta(part: Any) -> np.ndarray:
+def _theta(part: _Sensor, model: _TemperatureModel) -> np.ndarray:
     """(K+1, 3): a sensor's bias and its temperature coefficients, one row per order."""
-    return np.vstack([part.bias, part.temperature.coefficients])
+    return np.vstack([part.bias, model.coefficients])
 
 
-def parameter_values(cal: Any, temperature: Mapping[str, float] | None = None) -> dict[str, float]:
+def parameter_values(
+    cal: Calibrated, temperature: Mapping[str, float] | None = None
+) -> dict[str, float]:
     """Each named parameter's value (the names of ``cal.covariance``); with ``temperature``
     (°C per sensor) that sensor's bias at that temperature, ``bias + shift(T)``."""
     out: dict[str, float] = {}
     at = temperature or {}
     for sensor in ("accel", "mag", "gyro"):
-        part = getattr(cal, sensor)
+        part = _sensor(cal, sensor)
         if part is None:
             continue
         bias = part.bias
@@ -135,7 +195,7 @@ def parameter_values(cal: Any, temperature: Mapping[str, float] | None = None) -
 
 
 def temperature_values(
-    cal: Any, temperature: Mapping[str, float] | None = None
+    cal: Calibrated, temperature: Mapping[str, float] | None = None
 ) -> dict[str, float]:
     """Each fitted temperature coefficient ``<sensor>.temp[k,j]`` (order ``k`` from 1); with
     ``temperature`` (°C per sensor) the coefficients of the same polynomial about that
@@ -144,25 +204,25 @@ def temperature_values(
     out: dict[str, float] = {}
     at = temperature or {}
     for sensor in ("accel", "mag", "gyro"):
-        part = getattr(cal, sensor)
+        part = _sensor(cal, sensor)
         model = None if part is None else part.temperature
-        if model is None or not model.order:
+        if part is None or model is None or not model.order:
             continue
         c = model.coefficients
         if sensor in at:
-            c = (_reexpansion(model, at[sensor]) @ _theta(part))[1:]
+            c = (_reexpansion(model, at[sensor]) @ _theta(part, model))[1:]
         for k in range(model.order):
             for j in range(3):
                 out[f"{sensor}.temp[{k + 1},{j}]"] = float(c[k, j])
     return out
 
 
-def common_temperature(before: Any, after: Any, sensor: str) -> float | None:
+def common_temperature(before: Calibrated, after: Calibrated, sensor: str) -> float | None:
     """The temperature (°C) to compare ``sensor``'s biases at, or ``None`` when either
     calibration has no temperature model for it: where the one without fitted terms holds
     (its reference), else the middle of the temperatures both saw (of the two spans' overlap;
     of the gap between them when they do not overlap)."""
-    a, b = (getattr(getattr(c, sensor), "temperature", None) for c in (before, after))
+    a, b = (getattr(_sensor(c, sensor), "temperature", None) for c in (before, after))
     if a is None or b is None:
         return None
     models = [a, b]
@@ -175,7 +235,7 @@ def common_temperature(before: Any, after: Any, sensor: str) -> float | None:
 
 
 def parameter_stds(
-    cal: Any, names: list[str], temperature: Mapping[str, float] | None = None
+    cal: Calibrated, names: list[str], temperature: Mapping[str, float] | None = None
 ) -> np.ndarray:
     """Standard errors of the parameters ``names`` (NaN where the covariance has none); with
     ``temperature`` a sensor's bias and temperature coefficients are those about that
@@ -187,7 +247,7 @@ def parameter_stds(
     out = np.array([cov.std(n) if n in cov.names else np.nan for n in names])
     where = {n: i for i, n in enumerate(names)}
     for sensor, t in (temperature or {}).items():
-        part = getattr(cal, sensor)
+        part = _sensor(cal, sensor)
         model = None if part is None else part.temperature
         if model is None or not model.order:
             continue
@@ -205,7 +265,7 @@ def parameter_stds(
     return out
 
 
-def compare(before: Any, after: Any, *, sigmas: float = 3.0) -> Comparison:
+def compare(before: Calibrated, after: Calibrated, *, sigmas: float = 3.0) -> Comparison:
     """The parameters of ``after`` against ``before``: see the module's docstring.
 
     Raises

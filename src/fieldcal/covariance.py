@@ -7,7 +7,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal, TypeAlias
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +18,9 @@ __all__ = ["GYRO", "SENSORS", "Diagnostics", "ParameterCovariance", "Sensor"]
 
 Array = NDArray[np.float64]
 Sensor = Literal["accel", "mag"]
+#: The index that takes a square block out of a covariance matrix: two slices when its
+#: positions run in order (a view), else :func:`numpy.ix_` of them.
+BlockIndex: TypeAlias = "tuple[slice, slice] | tuple[NDArray[np.intp], ...]"
 
 #: The sensors of the joint model, in the order every table and parameter vector uses.
 SENSORS: tuple[Sensor, ...] = ("accel", "mag")
@@ -134,7 +137,7 @@ def _factor_index(names: tuple[str, ...], prefixes: tuple[str, ...]) -> NDArray[
 
 
 @functools.lru_cache(maxsize=256)
-def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], Any]:
+def _block_layout(names: tuple[str, ...], sensor: str) -> tuple[tuple[str, ...], BlockIndex]:
     """One sensor's gain, bias and temperature names (prefix dropped) and the index that takes
     its block: two slices when the positions run in order (the usual layout: a view, not
     numpy's slower fancy indexing), else :func:`numpy.ix_` of them."""

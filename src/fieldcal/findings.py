@@ -12,15 +12,28 @@ fit saw.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypedDict
 
 __all__ = [
     "Findings",
     "GyroFindings",
+    "GyroSegment",
     "MotionFindings",
     "PoseCorrelation",
     "TemperatureIgnored",
     "TemperatureSpan",
 ]
+
+
+class GyroSegment(TypedDict):
+    """One motion segment the gyroscope was fitted on: an entry of
+    :attr:`fieldcal.Calibration.gyro_segments` (the JSON's ``gyro_segments``, keys as here)."""
+
+    start: int  # first data row of the segment in the file
+    stop: int  # one past its last data row
+    seconds: float
+    angle_deg: float  # turned over the segment
+    residual_deg: float  # the integrated turn against the poses', after calibration
 
 
 @dataclass(frozen=True)

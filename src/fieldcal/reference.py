@@ -27,10 +27,13 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ._frozen import ArrayDataclass
 from .errors import InputError
+
+if TYPE_CHECKING:
+    import pygeomag
 
 __all__ = [
     "DIP_ALLOWANCE_DEG",
@@ -181,7 +184,7 @@ def _decimal_year(day: _dt.date) -> float:
 
 
 @functools.lru_cache(maxsize=len(_MODELS))
-def _model(coefficients: str) -> Any:
+def _model(coefficients: str) -> pygeomag.GeoMag:
     """pygeomag's model for one coefficient file (parsed once per process)."""
     try:
         pygeomag = importlib.import_module("pygeomag")

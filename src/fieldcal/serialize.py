@@ -18,7 +18,7 @@ import math
 import types
 import typing
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
+from typing import TYPE_CHECKING, SupportsFloat, TypeAlias, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,7 +42,7 @@ _D = TypeVar("_D", bound="DataclassInstance")
 _Nested: TypeAlias = "float | list[_Nested]"
 
 
-def _number(value: float | np.floating[Any]) -> float | str:
+def _number(value: SupportsFloat) -> float | str:
     value = float(value)
     if math.isnan(value):
         return "nan"
@@ -51,12 +51,12 @@ def _number(value: float | np.floating[Any]) -> float | str:
     return value
 
 
-def encode(value: object) -> Any:
+def encode(value: object) -> object:
     """A JSON-ready form of ``value``: dataclasses as dicts of their stored fields (plus their
     ``JSON_DERIVED`` values), arrays as nested lists, NaN/inf as strings."""
+    if type(value) is float:  # the common leaf first: a document holds about a thousand numbers
+        return value if math.isfinite(value) else _number(value)
     kind = type(value)
-    if kind is float:  # the common leaf first: a document holds about a thousand numbers
-        return value if math.isfinite(value) else _number(value)  # type: ignore[arg-type]
     if value is None or kind is str or kind is int or kind is bool:
         return value
     if isinstance(value, str):
@@ -92,7 +92,7 @@ def encode(value: object) -> Any:
 _LEAF = json.JSONEncoder(allow_nan=False).encode
 
 
-def dumps(value: Any, indent: int | None = 2) -> str:
+def dumps(value: object, indent: int | None = 2) -> str:
     """JSON text of an :func:`encode`-d document laid out for reading: an object one key per
     line, a list of numbers or words on one line, a list of lists or objects one item per line
     (a matrix one row per line, each row from one call of the json module's C encoder). The
@@ -106,7 +106,7 @@ def dumps(value: Any, indent: int | None = 2) -> str:
     return "".join(parts)
 
 
-def _lay_out(value: Any, level: int, indent: int, out: list[str]) -> None:
+def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
     inner = "\n" + " " * (indent * (level + 1))
     if isinstance(value, dict) and value:
         sep = "{"
@@ -155,8 +155,8 @@ _MAX_DEPTH = 32
 
 
 def _plain(value: object, where: str, depth: int = 0) -> object:
-    """A free-form JSON value (``typing.Any``) checked to nest at most :data:`_MAX_DEPTH`
-    deep, so writing it again cannot exhaust the stack."""
+    """A free-form JSON value (an option, a pose row) checked to nest at most
+    :data:`_MAX_DEPTH` deep, so writing it again cannot exhaust the stack."""
     if depth > _MAX_DEPTH:
         _fail(where, "is nested too deeply")
     if isinstance(value, dict):
@@ -197,7 +197,7 @@ def _is_array_hint(hint: object) -> bool:
     return typing.get_origin(hint) is np.ndarray or hint is np.ndarray
 
 
-def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, Any]) -> object:
+def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, object]) -> object:
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(hint) if a is not type(None)]
@@ -205,7 +205,7 @@ def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, An
             return None
         return _decode_value(args[0], value, where, meta)
     if _is_array_hint(hint):
-        return _array(value, where, meta.get("shape"))
+        return _array(value, where, cast("tuple[int, ...] | None", meta.get("shape")))
     if isinstance(hint, type) and dataclasses.is_dataclass(hint):
         return decode(hint, value, where)
     if hint is float:
@@ -237,7 +237,7 @@ def _decode_value(hint: object, value: object, where: str, meta: Mapping[str, An
                 if not isinstance(v, str):
                     _fail(f"{where}.{k}", "must be text")
         return _plain(value, where)
-    return _plain(value, where)  # typing.Any: kept as read
+    return _plain(value, where)  # free-form (an untyped field): kept as read
 
 
 def decode(cls: type[_D], data: object, where: str = "document") -> _D:

@@ -22,6 +22,7 @@ from fieldcal.geometry.quadrics import (
     reverse_triangular_factor,
 )
 from fieldcal.geometry.rotations import exp_so3, random_rotations, rotation_angle_deg
+from fieldcal.methods import dot_alignment
 from fieldcal.methods import ellipsoid as method
 from fieldcal.metrics import reconstruction_error
 
@@ -125,9 +126,10 @@ def test_hardened_residual_has_an_exact_analytic_jacobian():
     rng = np.random.default_rng(3)
     a, m = _unit(30, rng), _unit(30, rng)
     R0 = exp_so3(np.array([0.3, -0.2, 0.9]))
-    residual, jacobian = method._residual_hardened(method._outer_rows(a, m), R0)
+    rows = dot_alignment._outer_rows(a, m)
+    residual, jacobian = dot_alignment._residual_hardened(rows, R0)
     x = np.array([0.8, 0.3, -0.4, 1.2])
-    numeric = method._forward_difference(residual)(x)
+    numeric = dot_alignment._forward_difference(residual)(x)
     np.testing.assert_allclose(jacobian(x), numeric, atol=1e-6)
 
 
@@ -204,14 +206,14 @@ def test_hardened_beta_is_a_cosine_and_a_failed_solver_is_an_error(monkeypatch):
     result = method.align(a, m)
     assert -1 <= result.beta <= 1 and result.converged and result.status > 0
 
-    real = method.least_squares
+    real = dot_alignment.least_squares  # the alignment (Eq. 16) lives there
 
     def stalled(*args, **kwargs):
         out = real(*args, **kwargs)
         out.status, out.message = 0, "The maximum number of function evaluations is exceeded."
         return out
 
-    monkeypatch.setattr(method, "least_squares", stalled)
+    monkeypatch.setattr(dot_alignment, "least_squares", stalled)
     with pytest.raises(method.AlignmentError, match="did not converge") as info:
         method.align(a, m)
     assert isinstance(info.value, ValueError) and "\n" not in str(info.value)

@@ -17,7 +17,7 @@ import secrets
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from .. import api
 from ..calibration import Calibration
@@ -28,7 +28,11 @@ from ..settings import OPTIONS
 from .executors import default_jobs, run_dask, run_processes, run_sequential
 from .job import CAL_FILE, GROUP, ROW_FILE, JobResult, Task, export_name, read_row
 from .manifest import LogSpec, check_devices, expand_logs
-from .table import COLUMNS, failed, to_arrow, to_pandas, write_summary
+from .table import COLUMNS, Cell, SummaryRow, failed, to_arrow, to_pandas, write_summary
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import pyarrow as pa
 
 __all__ = ["COLUMNS", "BatchResult", "LogSpec", "calibrate_many", "export_name"]
 
@@ -53,29 +57,29 @@ class BatchResult:
         How many rows an earlier batch made (``resume``).
     """
 
-    rows: tuple[dict[str, Any], ...]
+    rows: tuple[SummaryRow, ...]
     calibrations: dict[str, Calibration] = field(default_factory=dict)
     files: tuple[Path, ...] = ()
     resumed: int = 0
 
     @property
-    def failed(self) -> tuple[dict[str, Any], ...]:
+    def failed(self) -> tuple[SummaryRow, ...]:
         """The rows whose verdict is fail or whose log gave an error."""
         return tuple(r for r in self.rows if failed(r))
 
     @property
-    def summary(self) -> Any:
+    def summary(self) -> pd.DataFrame | pa.Table:
         """The summary as a ``pandas.DataFrame``, or a ``pyarrow.Table`` without pandas."""
         try:
             return self.to_pandas()
         except ImportError:
             return self.to_arrow()
 
-    def to_pandas(self) -> Any:
+    def to_pandas(self) -> pd.DataFrame:
         """The summary as a ``pandas.DataFrame`` (needs pandas)."""
         return to_pandas(self.rows)
 
-    def to_arrow(self) -> Any:
+    def to_arrow(self) -> pa.Table:
         """The summary as a ``pyarrow.Table`` (needs pyarrow)."""
         return to_arrow(self.rows)
 
@@ -90,7 +94,7 @@ def _allowed_options() -> set[str]:
     return names - set(_OWN)
 
 
-def _check_options(options: Mapping[str, Any], exports: Sequence[str]) -> None:
+def _check_options(options: Mapping[str, object], exports: Sequence[str]) -> None:
     unknown = sorted(set(options) - _allowed_options())
     if unknown:
         raise InputError(
@@ -104,16 +108,16 @@ def _check_options(options: Mapping[str, Any], exports: Sequence[str]) -> None:
             raise InputError(str(exc)) from None
 
 
-def _done_before(folder: Path) -> dict[str, dict[str, Any]]:
+def _done_before(folder: Path) -> dict[str, SummaryRow]:
     """Rows of logs whose results a previous batch wrote in full (``row.json`` beside its
     ``cal.json``), by log."""
-    done: dict[str, dict[str, Any]] = {}
+    done: dict[str, SummaryRow] = {}
     for path in sorted(folder.glob(f"*/{ROW_FILE}")):
         row = read_row(path)
         if row is None or row["error"] or row["export_error"]:
             continue  # not done, or an export is still to write
         if (path.parent / CAL_FILE).is_file():
-            done.setdefault(row["log"], row)
+            done.setdefault(str(row["log"]), row)
     return done
 
 
@@ -148,7 +152,7 @@ def calibrate_many(
     force: bool = False,
     created: str | None = None,
     keep_calibrations: bool = True,
-    on_result: Callable[[Mapping[str, Any]], None] | None = None,
+    on_result: Callable[[Mapping[str, Cell]], None] | None = None,
     group: int = GROUP,
     **options: object,
 ) -> BatchResult:
@@ -221,20 +225,22 @@ def calibrate_many(
     folder = None if out is None else Path(os.path.abspath(out))
     if folder is None and resume:
         raise InputError("resume needs the folder of the earlier batch; give out=FOLDER")
-    done: dict[str, dict[str, Any]] = {}
+    done: dict[str, SummaryRow] = {}
     if folder is not None:
         _prepare(folder, resume=resume, force=force)
         done = _done_before(folder) if resume else {}
     stamp = created or _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat()
     token = secrets.token_hex(6)
-    rows: list[dict[str, Any] | None] = [None] * len(specs)
+    rows: list[SummaryRow | None] = [None] * len(specs)
     calibrations: dict[str, Calibration] = {}
     tasks = []
     for i, spec in enumerate(specs):
         if spec.log in done:
             rows[i] = done[spec.log]
             if keep_calibrations and folder is not None:
-                text = (folder / done[spec.log]["device"] / CAL_FILE).read_text(encoding="utf-8")
+                text = (folder / str(done[spec.log]["device"]) / CAL_FILE).read_text(
+                    encoding="utf-8"
+                )
                 calibrations[spec.log] = Calibration.from_json(text)
             if on_result is not None:
                 on_result(done[spec.log])

@@ -31,13 +31,19 @@ import os
 import socket
 from collections.abc import Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._version import __version__
 from ..errors import InputError
 from .job import GROUP, JobResult, Task, run_tasks
 from .manifest import fallback_device
 from .table import error_row
+
+if TYPE_CHECKING:
+    import ctypes
+
+    #: One flag per task index, shared with the worker processes: 1 once a worker began it.
+    Started = ctypes.Array[ctypes.c_byte]
 
 __all__ = [
     "BLAS_ENV",
@@ -54,7 +60,7 @@ BLAS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_
 #: Tasks in flight per worker process: enough to keep each busy, few to redo after a death.
 _AHEAD = 2
 
-_STARTED: Any = None
+_STARTED: Started | None = None
 
 
 def default_jobs() -> int:
@@ -141,7 +147,7 @@ def run_sequential(tasks: Sequence[Task], group: int = GROUP) -> Iterator[JobRes
 
 
 # ----------------------------------------------------------------------------- processes
-def _init_worker(started: Any) -> None:
+def _init_worker(started: Started) -> None:
     """A worker's start: one BLAS thread (the variables for libraries loaded later, the limit
     for those loaded already) and the flags saying which task it has begun."""
     global _STARTED
@@ -154,6 +160,7 @@ def _init_worker(started: Any) -> None:
 def _run_marked(chunk: tuple[Task, ...], group: int) -> list[JobResult]:
     """:func:`run_tasks`, flagging the tasks as begun first: when a worker dies, the flags
     tell the logs it was running from the ones still queued."""
+    assert _STARTED is not None  # set by _init_worker, the pool's initializer
     for task in chunk:
         _STARTED[task.index] = 1
     return run_tasks(chunk, group)
@@ -173,7 +180,7 @@ def _died(task: Task, what: str) -> JobResult:
     )
 
 
-def _pool(jobs: int, started: Any) -> cf.ProcessPoolExecutor:
+def _pool(jobs: int, started: Started) -> cf.ProcessPoolExecutor:
     return cf.ProcessPoolExecutor(
         max_workers=jobs,
         mp_context=multiprocessing.get_context("spawn"),
@@ -182,7 +189,7 @@ def _pool(jobs: int, started: Any) -> cf.ProcessPoolExecutor:
     )
 
 
-def _alone(task: Task, started: Any) -> JobResult:
+def _alone(task: Task, started: Started) -> JobResult:
     """A retry in a fresh process of its own."""
     with _pool(1, started) as pool:
         try:

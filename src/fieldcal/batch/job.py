@@ -4,7 +4,7 @@
 the log never travels through a scheduler), calibrates it as ``fieldcal calibrate`` does,
 writes ``<out>/<device>/cal.json`` and the exports asked for, each atomically, then
 ``row.json`` (the summary row; written last, it marks the log done for ``resume``), and
-returns the row. Any error becomes a row with verdict ``fail`` and a one-line ``error``: a bad
+returns the row. Every error becomes a row with verdict ``fail`` and a one-line ``error``: a bad
 log never stops a batch.
 
 Everything written depends on the log and the options only (``created`` is the batch's, not
@@ -37,7 +37,7 @@ import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import TYPE_CHECKING
 from urllib.parse import urlparse
 
 from .. import _files
@@ -46,14 +46,17 @@ from ..calibration import Calibration
 from ..errors import InputError
 from ..likelihood.fleet import run_together
 from ..likelihood.fleet import seconds as _clock
-from ..logs import Log, load_log
+from ..logs import Log, PoseSet, load_log
 from ..logs.arrow_parser import pyarrow_module
 from ..output import exports as export_formats
 from ..pipeline import LogSettings, document, run_log
 from ..serialize import dumps
 from ..settings import ReadSettings
 from .manifest import device_id, fallback_device
-from .table import COLUMN_TYPES, error_row, row_for
+from .table import COLUMN_TYPES, Cell, SummaryRow, error_row, row_for
+
+if TYPE_CHECKING:
+    import threadpoolctl
 
 __all__ = [
     "CRASH_ENV",
@@ -125,7 +128,7 @@ class JobResult:
     """What a task gives back: its summary row and, when kept, the calibration."""
 
     index: int
-    row: dict[str, Any]
+    row: SummaryRow
     calibration: Calibration | None = None
 
 
@@ -179,10 +182,10 @@ def _read(log: str, read: ReadSettings) -> Log:
 
 
 # ----------------------------------------------------------------------------- the work
-_CONTROLLER: Any = None
+_CONTROLLER: threadpoolctl.ThreadpoolController | None = None
 
 
-def _blas_one_thread() -> Any:
+def _blas_one_thread() -> contextlib.AbstractContextManager[object]:
     """One BLAS thread for this log's work: the executors run one log per core already. The
     controller is made once per process (scanning the loaded libraries takes milliseconds)."""
     global _CONTROLLER
@@ -240,7 +243,7 @@ class _Calibrated:
     device: str
     samples: int
     calibration: Calibration
-    poses: Any
+    poses: PoseSet
     warned: tuple[str, ...]
     seconds: float
 
@@ -337,7 +340,7 @@ def run_tasks(tasks: Sequence[Task], group: int = GROUP) -> list[JobResult]:
     return out
 
 
-def _write(task: Task, device: str, cal: Calibration, doc: dict[str, Any]) -> str:
+def _write(task: Task, device: str, cal: Calibration, doc: Mapping[str, object]) -> str:
     """Write ``cal.json`` and the exports; returns the exports' errors as one line (empty when
     every export was written): a failed export never hides the calibration's row."""
     folder = Path(str(task.out)) / device
@@ -396,12 +399,12 @@ def _claim(folder: Path, device: str, task: Task) -> None:
 
 
 # ----------------------------------------------------------------------------- rows on disk
-def _row_json(row: Mapping[str, Any]) -> str:
+def _row_json(row: Mapping[str, Cell]) -> str:
     clean = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in row.items()}
     return dumps(clean, indent=1) + "\n"
 
 
-def read_row(path: Path) -> dict[str, Any] | None:
+def read_row(path: Path) -> SummaryRow | None:
     """A row written by :func:`run_task` (``row.json``), or ``None`` when it cannot be read.
 
     Parameters
@@ -419,7 +422,7 @@ def read_row(path: Path) -> dict[str, Any] | None:
         return None
     if not isinstance(data, dict) or not isinstance(data.get("log"), str):
         return None
-    row: dict[str, Any] = {}
+    row: SummaryRow = {}
     for name, kind in COLUMN_TYPES.items():
         value = data.get(name)
         if kind is float:

@@ -28,7 +28,6 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any
 from urllib.parse import urlparse
 
 from ..errors import InputError
@@ -67,7 +66,7 @@ class LogSpec:
 
     log: str
     device: str | None = None
-    options: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, object] = field(default_factory=dict)
     source: str = "argument"
 
 
@@ -111,7 +110,7 @@ def device_id(text: str) -> str:
 
 
 # ----------------------------------------------------------------------------- option columns
-def _cell_parser(option: Option) -> Callable[[str], Any]:
+def _cell_parser(option: Option) -> Callable[[str], object]:
     """The parser of an option's cells: :func:`fieldcal.settings.parse`; a method's name is
     checked against the registry."""
     if option.name == "method":
@@ -132,7 +131,7 @@ def _cell_parser(option: Option) -> Callable[[str], Any]:
 #: text). ``no_robust`` turns robust fitting and the trimming of bumps off together, as
 #: ``--no-robust`` does; ``target_tilt``, ``target_heading``, ``target_norm`` set the
 #: verdict's accuracy targets for that log.
-OPTION_COLUMNS: dict[str, tuple[str, Callable[[str], Any]]] = {
+OPTION_COLUMNS: dict[str, tuple[str, Callable[[str], object]]] = {
     column: (option.name, _cell_parser(option))
     for option in OPTIONS.values()
     if option.on_command_line
@@ -145,8 +144,8 @@ def _column(name: str) -> str:
     return name.strip().lower().lstrip("-").replace("-", "_")
 
 
-def _row_options(cells: Mapping[str, str], where: str) -> dict[str, Any]:
-    options: dict[str, Any] = {}
+def _row_options(cells: Mapping[str, str], where: str) -> dict[str, object]:
+    options: dict[str, object] = {}
     for column, text in cells.items():
         if not text:
             continue

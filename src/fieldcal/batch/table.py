@@ -19,17 +19,24 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, TypeAlias
 
 from .. import _files
 from ..calibration import Calibration
 from ..comparison import parameter_values
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import pyarrow as pa
 
 __all__ = [
     "CODE_SEPARATOR",
     "COLUMNS",
     "COLUMN_TYPES",
     "PARAMETERS",
+    "Cell",
+    "SummaryRow",
     "error_row",
     "failed",
     "row_for",
@@ -87,6 +94,12 @@ COLUMN_TYPES: dict[str, type] = {
 #: The columns in order.
 COLUMNS: tuple[str, ...] = tuple(COLUMN_TYPES)
 
+#: One cell of the table: text (``str`` columns), a count (``int`` columns, ``None`` when
+#: absent) or a number (``float`` columns, NaN when absent).
+Cell: TypeAlias = str | int | float | None
+#: One log's row: every column of :data:`COLUMNS` by name.
+SummaryRow: TypeAlias = dict[str, Cell]
+
 _SEPARATOR = " | "
 #: Between the codes of ``reason_codes``.
 CODE_SEPARATOR = ","
@@ -96,7 +109,7 @@ def _number(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
 
-def _empty_row() -> dict[str, Any]:
+def _empty_row() -> SummaryRow:
     return {
         name: "" if kind is str else (None if kind is int else math.nan)
         for name, kind in COLUMN_TYPES.items()
@@ -112,7 +125,7 @@ def row_for(
     seconds: float,
     version: str,
     warned: Sequence[str] = (),
-) -> dict[str, Any]:
+) -> SummaryRow:
     """The summary row of a calibration.
 
     Parameters
@@ -180,7 +193,7 @@ def row_for(
     return row
 
 
-def error_row(device: str, log: str, error: str, *, seconds: float, version: str) -> dict[str, Any]:
+def error_row(device: str, log: str, error: str, *, seconds: float, version: str) -> SummaryRow:
     """The row of a log that gave no calibration: verdict ``fail`` and the one-line ``error``.
 
     Parameters
@@ -207,7 +220,7 @@ def error_row(device: str, log: str, error: str, *, seconds: float, version: str
     return row
 
 
-def failed(row: Mapping[str, Any]) -> bool:
+def failed(row: Mapping[str, Cell]) -> bool:
     """Whether a row counts as a failure (verdict fail, an error, or an export not written).
 
     Parameters
@@ -222,7 +235,7 @@ def failed(row: Mapping[str, Any]) -> bool:
 
 
 # ----------------------------------------------------------------------------- files
-def _cell(value: Any) -> str:
+def _cell(value: Cell) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
@@ -230,7 +243,7 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
+def csv_text(rows: Sequence[Mapping[str, Cell]]) -> str:
     """The summary as CSV text (header, one line per row; empty cells for absent values)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
@@ -240,11 +253,11 @@ def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     return out.getvalue()
 
 
-def _pyarrow() -> Any:
+def _pyarrow() -> ModuleType:
     return importlib.import_module("pyarrow")
 
 
-def to_arrow(rows: Sequence[Mapping[str, Any]]) -> Any:
+def to_arrow(rows: Sequence[Mapping[str, Cell]]) -> pa.Table:
     """The summary as a ``pyarrow.Table`` with the types of :data:`COLUMN_TYPES`.
 
     Parameters
@@ -268,7 +281,7 @@ def to_arrow(rows: Sequence[Mapping[str, Any]]) -> Any:
     return pa.Table.from_pydict(columns, schema=schema)
 
 
-def to_pandas(rows: Sequence[Mapping[str, Any]]) -> Any:
+def to_pandas(rows: Sequence[Mapping[str, Cell]]) -> pd.DataFrame:
     """The summary as a ``pandas.DataFrame`` (NaN for absent numbers, ``<NA>`` for counts).
 
     Parameters
@@ -289,7 +302,7 @@ def to_pandas(rows: Sequence[Mapping[str, Any]]) -> Any:
     return frame
 
 
-def write_summary(rows: Sequence[Mapping[str, Any]], folder: Path) -> list[Path]:
+def write_summary(rows: Sequence[Mapping[str, Cell]], folder: Path) -> list[Path]:
     """Write ``summary.csv`` and ``summary.parquet`` into ``folder``, each atomically.
 
     Parameters

@@ -6,7 +6,6 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
 
 import click
 
@@ -29,7 +28,7 @@ _BATCH_SHOWN = 50
 
 
 @contextmanager
-def _batch_bar(quiet: bool, total: int) -> Iterator[Callable[[Any], None]]:
+def _batch_bar(quiet: bool, total: int) -> Iterator[Callable[[object], None]]:
     """A progress bar on stderr (logs done, logs/s, time left), or nothing: off with
     ``--quiet`` and when stderr is not a terminal."""
     stream = sys.stderr
@@ -49,7 +48,7 @@ def _batch_bar(quiet: bool, total: int) -> Iterator[Callable[[Any], None]]:
     with bar:
         task = bar.add_task("batch", total=total, rate="")
 
-        def advance(row: Any) -> None:
+        def advance(row: object) -> None:
             done = bar.tasks[0].completed + 1
             rate = done / max(time.perf_counter() - started, 1e-9)
             bar.update(task, advance=1, rate=f"{rate:.3g} logs/s")
@@ -95,7 +94,7 @@ def batch(
     resume: bool,
     quiet: bool,
     force: bool,
-    **opts: Any,
+    **opts: object,
 ) -> None:
     """Calibrate every LOG on its own (files, globs, fsspec URLs, manifest .csv files) and
     write one summary table.

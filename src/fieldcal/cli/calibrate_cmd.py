@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import click
 
@@ -67,7 +66,7 @@ def calibrate(
     as_json: bool,
     quiet: bool,
     force: bool,
-    **opts: Any,
+    **opts: object,
 ) -> None:
     """Calibrate from LOG (CSV with header, .npz or .parquet) and write the calibration JSON.
 
@@ -269,7 +268,7 @@ def report(
     png_dir: str | None,
     quiet: bool,
     force: bool,
-    **cols: Any,
+    **cols: object,
 ) -> None:
     """Pictures of the calibration: spheres, pose coverage, residuals, norm and dip histograms."""
     inputs = {"calibration": cal_json, "log": log}

@@ -9,7 +9,6 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import click
 
@@ -95,7 +94,7 @@ def capture(
     plain: bool,
     quiet: bool,
     force: bool,
-    **opts: Any,
+    **opts: object,
 ) -> None:
     """Calibrate live from a device: catch each still pose, say which pose to take next.
 

@@ -7,27 +7,46 @@ rules (``gyro_segments``, ``gyro_misfit``, ``gyro_gain`` in :mod:`fieldcal.trust
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration, ParameterCovariance
 from ..errors import InputError
-from ..findings import GyroFindings
+from ..findings import GyroFindings, GyroSegment
 from ..geometry.rotations import hat, rotation_angle_deg
 from ..likelihood.cramer_rao import pose_rotation_factors
 from ..logs import Log, PoseSet
 from ..logs.log_temperature import pose_temperature_samples
+from ..logs.pose_finding import PoseEntry
 from .estimate import GyroFit, fit_gyro
 from .integrate import segment_turns
 from .temperature import with_bias_temperature
 
-__all__ = ["gyro_stage", "with_gyro"]
+__all__ = ["GyroRecord", "gyro_stage", "with_gyro"]
 
 
-def _log_rows(log: Log, entry: Mapping[str, Any]) -> tuple[int, int]:
+class GyroRecord(TypedDict, total=False):
+    """How the gyroscope was fitted: ``Calibration.options["gyro"]`` (the JSON's
+    ``options.gyro``), read by the report and by a person checking the fit."""
+
+    method: str
+    drift: float | None
+    drift_p_value: float | None
+    bias_wander: float
+    pose_time: list[float]  # seconds, each pose's middle
+    pose_bias: list[list[float]]  # each pose's mean rate, rad/s
+    observable: list[str]
+    statistic: float
+    dof: int
+    p_value: float
+    widening: float
+    temperature: dict[str, object]  # the bias against temperature, with one
+
+
+def _log_rows(log: Log, entry: PoseEntry) -> tuple[int, int]:
     """A pose's first and stop positions among the log's kept rows (``start``/``stop`` are
     data-row numbers)."""
     first = int(np.searchsorted(log.index, int(entry["start"])))
@@ -68,8 +87,8 @@ def gyro_stage(
         return skip("it needs the accelerometer (the gravity directions) to be calibrated")
     if log.time is not None and rate is None:
         time = log.time
-    elif rate is not None or log.rate is not None:
-        time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
+    elif (hz := rate or log.rate) is not None:
+        time = np.arange(log.n) / float(hz)
     else:
         return skip("the log has no time column; give one or the sample rate (--rate)")
     dropped = {r.index for r in cal.rejected}
@@ -139,18 +158,18 @@ def with_gyro(cal: Calibration, fit: GyroFit, log: Log, time: NDArray[np.float64
     )
     angles = rotation_angle_deg(turns)
     segments = [
-        {
-            "start": int(log.index[first]),
-            "stop": int(log.index[last]) + 1,
-            "seconds": float(time[last] - time[first]),
-            "angle_deg": float(angle),
-            "residual_deg": float(residual),
-        }
+        GyroSegment(
+            start=int(log.index[first]),
+            stop=int(log.index[last]) + 1,
+            seconds=float(time[last] - time[first]),
+            angle_deg=float(angle),
+            residual_deg=float(residual),
+        )
         for (first, last), angle, residual in zip(
             fit.segments, angles, fit.segment_residual_deg, strict=True
         )
     ]
-    how: dict[str, Any] = {
+    how: GyroRecord = {
         "method": fit.method,
         "drift": fit.drift,
         "drift_p_value": fit.drift_p_value,

@@ -32,7 +32,7 @@ import time
 import warnings
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeAlias, TypeVar
 
 import numpy as np
 
@@ -49,11 +49,16 @@ T = TypeVar("T")
 _WARNING_STATE = ("filters", "showwarning", "_showwarnmsg_impl")
 
 
-def _save_warnings() -> tuple[Any, ...]:
-    return tuple(getattr(warnings, name) for name in _WARNING_STATE)
+#: Those three values: the filters (a list, copied per thread) and two functions.
+_WarningState: TypeAlias = tuple[list[object], object, object]
 
 
-def _restore_warnings(state: tuple[Any, ...]) -> None:
+def _save_warnings() -> _WarningState:
+    filters, show, show_impl = (getattr(warnings, name) for name in _WARNING_STATE)
+    return filters, show, show_impl
+
+
+def _restore_warnings(state: _WarningState) -> None:
     for name, value in zip(_WARNING_STATE, state, strict=True):
         setattr(warnings, name, value)
     warnings._filters_mutated()  # type: ignore[attr-defined]
@@ -64,7 +69,7 @@ class _Member:
     """One thread of the fleet: its place in the turn order, its warnings, its clock."""
 
     index: int
-    warnings: tuple[Any, ...]
+    warnings: _WarningState
     own: float = 0.0
     since: float = 0.0
     #: set when this thread holds the turn (only the next holder is woken, not every thread)

@@ -7,10 +7,13 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import pyarrow
 
 __all__ = ["arrow_parser", "float_column", "pyarrow_module"]
 
@@ -70,7 +73,7 @@ def arrow_parser(
 
     def parsed(raw: bytes) -> _Parsed | None:
         try:
-            table: Any = pa_csv.read_csv(
+            table: pyarrow.Table = pa_csv.read_csv(
                 pa.BufferReader(raw), read_options=read, parse_options=parse,
                 convert_options=convert,
             )  # fmt: skip
@@ -91,7 +94,7 @@ def arrow_parser(
     return parsed
 
 
-def float_column(column: Any) -> Array:
+def float_column(column: pyarrow.ChunkedArray) -> Array:
     """A pyarrow float64 column (chunked) as one numpy array, nulls as NaN (read from its
     buffers, :func:`_doubles`).
 
@@ -108,7 +111,7 @@ def float_column(column: Any) -> Array:
     return out
 
 
-def _doubles(chunk: Any) -> Array:
+def _doubles(chunk: pyarrow.Array) -> Array:
     """A pyarrow float64 array as numpy's, nulls as NaN; read from its buffers, as pyarrow's
     ``to_numpy`` would import pandas (a second or so) to do it."""
     valid, data = chunk.buffers()

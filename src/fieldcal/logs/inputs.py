@@ -119,14 +119,14 @@ def read_log(
     """
     if isinstance(source, Log):
         return source
-    columns: dict[str, Any] = {
-        "accel_cols": accel_cols,
-        "mag_cols": mag_cols,
-        "gyro_cols": gyro_cols,
-        "time_col": time_col,
-        "pose_col": pose_col,
-        "drop_nan": drop_nan,
-    }
-    if isinstance(source, str | os.PathLike):
-        return load_log(Path(source), **columns, **reading)
-    return load_log(table_from_frame(source), **columns, **reading)
+    table = Path(source) if isinstance(source, str | os.PathLike) else table_from_frame(source)
+    return load_log(
+        table,
+        accel_cols=accel_cols,
+        mag_cols=mag_cols,
+        gyro_cols=gyro_cols,
+        time_col=time_col,
+        pose_col=pose_col,
+        drop_nan=drop_nan,
+        **reading,
+    )

@@ -30,7 +30,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,6 +51,9 @@ from .columns import (
 )
 from .readers import Table, read_table
 from .rosbag import is_bag, read_bag
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["LARGEST", "PAUSE", "Log", "load_log", "sample_rate"]
 
@@ -127,7 +130,7 @@ class Log:
         """Samples per second from the time column (:func:`sample_rate`); ``None`` without one."""
         return None if self.time is None else sample_rate(self.time, self.segment)
 
-    def to_pandas(self) -> Any:
+    def to_pandas(self) -> pd.DataFrame:
         """The log as a pandas DataFrame.
 
         Columns ``t`` (seconds), ``ax, ay, az``, ``mx, my, mz``, ``gx, gy, gz``, ``pose`` and
@@ -141,7 +144,7 @@ class Log:
             raise InputError(
                 "Log.to_pandas needs pandas, which is not installed; pip install pandas"
             ) from None
-        columns: dict[str, NDArray[Any]] = {}
+        columns: dict[str, NDArray[np.generic]] = {}
         if self.time is not None:
             columns["t"] = self.time
         for letter, values in (("a", self.accel), ("m", self.mag), ("g", self.gyro)):
@@ -612,9 +615,9 @@ def _finite_rows(
     used: dict[str, list[str]],
     data: dict[str, Array],
     time: Array | None,
-    pose: Any,
+    pose: NDArray[np.generic] | None,
     drop_nan: bool,
-) -> tuple[dict[str, Array], Array | None, Any, NDArray[np.int64], int]:
+) -> tuple[dict[str, Array], Array | None, NDArray[np.generic] | None, NDArray[np.int64], int]:
     """The rows whose used values are all finite: refused, or dropped with ``drop_nan``.
     Returns the data, time and pose of those rows, their row numbers and how many dropped."""
     # min and max are NaN or inf when any value is: the everyday log (every value finite)
@@ -656,7 +659,7 @@ def _finite_rows(
 
 def _time_axis(
     time: Array, name: str, index: NDArray[np.int64], table: Table, split_on_reset: bool
-) -> tuple[Array, Any, list[str]]:
+) -> tuple[Array, NDArray[np.int64] | None, list[str]]:
     """The time column in seconds, split at resets (or refused there); the notes it leaves."""
     with np.errstate(over="ignore", invalid="ignore"):  # a span too wide is refused below
         steps = np.diff(time)  # in the column's unit; its typical step found once

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,10 +12,13 @@ from .log import Log
 
 __all__ = ["pose_temperature_samples"]
 
+if TYPE_CHECKING:
+    from .pose_finding import PoseEntry
+
 Array = NDArray[np.float64]
 
 
-def pose_temperature_samples(log: Log, entries: Sequence[Any]) -> list[Array] | None:
+def pose_temperature_samples(log: Log, entries: Sequence[PoseEntry]) -> list[Array] | None:
     """The temperature column's values in each pose (``entries``: the poses' ``pieces``,
     ``start``/``stop`` data rows or pose-column ``label``), or ``None`` when the log has no
     temperature or a pose's rows cannot be located."""

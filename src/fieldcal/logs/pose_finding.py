@@ -34,7 +34,7 @@ import numbers
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, TypedDict
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -117,7 +117,7 @@ class WindowCut:
         """The larger of ``drift`` and ``spread``: what must stay under ``limit``."""
         return max(self.drift, self.spread)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         per_s = None if not self.seconds else math.degrees(self.turn) * self.window / self.seconds
         return {
             "window": self.window,
@@ -170,9 +170,9 @@ class PoseSet:
             self._means[sensor] = np.array([_mean(p) for p in samples]).reshape(-1, 3)
         return self._means[sensor]
 
-    def record(self) -> dict[str, Any]:
+    def record(self) -> dict[str, object]:
         """How the poses were made, for the JSON: the source, its parameters, the rate."""
-        out: dict[str, Any] = {"source": self.source}
+        out: dict[str, object] = {"source": self.source}
         if self.detection is not None:
             out.update(self.detection.to_dict())
         if self.windows is not None:
@@ -318,7 +318,7 @@ def _grouped(log: Log) -> tuple[Rows | None, Rows, list[str]]:
     return rows[sort], counts, [_label(v) for v in values[order].tolist()]
 
 
-def _label_runs(log: Log, labels: NDArray[Any]) -> tuple[Rows, list[str]] | None:
+def _label_runs(log: Log, labels: NDArray[np.generic]) -> tuple[Rows, list[str]] | None:
     """The counts and labels of every row labelled, each label in one run of rows (as a
     logger writes the poses one after the other): :func:`_grouped`'s answer without sorting
     the labels or gathering the rows; None when a label comes back after another."""

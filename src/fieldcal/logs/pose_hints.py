@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import InputError
 from .columns import DEVICE_WORDS, normalise
@@ -43,6 +45,7 @@ RETRY_SAMPLES = 8_000_000
 RATE_GUESSES = (10.0, 25.0, 100.0)
 #: Hints shown in a message (the best first).
 SHOWN = 3
+_S = TypeVar("_S", bound=np.generic)
 _DEFAULTS = {"window": (0.5, 25), "min_still": (1.0, 50)}
 
 
@@ -55,7 +58,7 @@ class PoseHint:
     (closer than 3° count as one) of ``poses``.
     """
 
-    options: dict[str, Any]
+    options: Mapping[str, float | str]
     flags: str
     poses: int
     orientations: int
@@ -89,12 +92,12 @@ def _try(log: Log, **options: Any) -> tuple[int, int] | None:
 
 
 def _detection_options(
-    log: Log, rate: float | None, settings: dict[str, Any]
-) -> list[tuple[dict[str, Any], str]]:
+    log: Log, rate: float | None, settings: dict[str, float | None]
+) -> list[tuple[dict[str, float], str]]:
     """The looser still-detection settings to try, as keywords and flags (bounded)."""
     given = {k: v for k, v in settings.items() if v is not None}
     hz = rate if rate is not None else (log.rate if log.n > 1 else None)
-    out: list[tuple[dict[str, Any], str]] = []
+    out: list[tuple[dict[str, float], str]] = []
     if hz is None and "window" not in given and "min_still" not in given:
         out += [({"rate": r}, f"--rate {r:g}") for r in RATE_GUESSES]
     unit = 0 if hz else 1
@@ -226,16 +229,18 @@ def pose_hints(
     best: dict[frozenset[str] | str, PoseHint] = {}  # the best of each kind, every column
     for i in order:
         column = hints[i].options.get("pose_col")
-        best.setdefault(column if column is not None else frozenset(hints[i].options), hints[i])
+        best.setdefault(
+            column if isinstance(column, str) else frozenset(hints[i].options), hints[i]
+        )
     return list(best.values())
 
 
-def _subset(log: Log, rows: np.ndarray[Any, Any] | None) -> Log:
+def _subset(log: Log, rows: NDArray[np.intp] | None) -> Log:
     """``log`` restricted to ``rows`` (None: the whole log)."""
     if rows is None:
         return log
 
-    def pick(x: Any) -> Any:
+    def pick(x: NDArray[_S] | None) -> NDArray[_S] | None:
         return None if x is None else x[rows]
 
     return dataclasses.replace(

@@ -32,7 +32,6 @@ import math
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -98,7 +97,7 @@ class StillResult:
         }
 
 
-def _bounds(n: int, segment: NDArray[np.integer[Any]] | None) -> NDArray[np.int64]:
+def _bounds(n: int, segment: NDArray[np.int64] | None) -> NDArray[np.int64]:
     """First rows of the segments after the first (where ``segment`` changes); empty for one."""
     if segment is None:
         return np.empty(0, dtype=np.int64)
@@ -160,9 +159,7 @@ def _window_means(
     return means
 
 
-def moving_variance(
-    x: Array, window: int, segment: NDArray[np.integer[Any]] | None = None
-) -> Array:
+def moving_variance(x: Array, window: int, segment: NDArray[np.int64] | None = None) -> Array:
     """Sum over columns of the variance in a centred window (truncated at the ends and, when
     ``segment`` is given, where it changes), O(n)."""
     x = np.asarray(x, dtype=float)
@@ -208,8 +205,9 @@ def scale_of(x: Array) -> float:
 
 def _real(value: object, name: str, *, minimum: float, inclusive: bool = True) -> float:
     """A finite real number ``>= minimum`` (``> minimum`` unless ``inclusive``)."""
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
-    number = float(value) if ok else math.nan  # type: ignore[arg-type]  # checked just above
+    number = math.nan  # anything but a real number (a bool is not one here) fails below
+    if not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real):
+        number = float(value)
     if not (math.isfinite(number) and (number >= minimum if inclusive else number > minimum)):
         bound = f"at least {minimum:g}" if inclusive else f"above {minimum:g}"
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}"[:200])
@@ -367,7 +365,7 @@ def detect_still(
     floor_quantile: float = 0.1,
     max_gap: float | None = None,
     merge_sigma: float = 5.0,
-    segment: NDArray[np.integer[Any]] | None = None,
+    segment: NDArray[np.int64] | None = None,
 ) -> StillResult:
     """Find the intervals in which the device rests.
 

@@ -159,7 +159,7 @@ def _chars(delimiter: str | None, decimal: str) -> re.Pattern[str]:
     return re.compile(f"[^{allowed}]")
 
 
-#: Any character that no data line of any layout holds (a debug print, a header).
+#: A character that no data line of any layout holds (a debug print, a header).
 _TEXT = re.compile(r"[^0-9eE+\-., \t;]")
 
 

@@ -29,7 +29,7 @@ import importlib
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from ..settings import OPTIONS
 from ..stats.pose_stats import brief
@@ -105,7 +105,7 @@ class Method:
         fit: Callable[..., Calibration] = getattr(importlib.import_module(self.module), self.entry)
         return fit
 
-    def fit(self, *args: Any, **kwargs: Any) -> Calibration:
+    def fit(self, *args: object, **kwargs: object) -> Calibration:
         """Call the estimator (``estimator("continuous").fit(time, accel, mag, gyro)``): its
         function's parameters, documented there."""
         return self.load()(*args, **kwargs)

@@ -18,7 +18,7 @@ place it is imported.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -188,7 +188,7 @@ def motion_figures(
     none without the log or the trajectory."""
     if log is None or not is_continuous(cal) or len(cal.rotations) == 0 or log.n == 0:
         return {}
-    figures: dict[str, Any] = {"trajectory": _trajectory_figure(Figure, cal, log)}
+    figures: dict[str, MplFigure] = {"trajectory": _trajectory_figure(Figure, cal, log)}
     if cal.accel is not None or cal.mag is not None:
         figures["motion_residuals"] = _residual_figure(Figure, cal, log)
     return figures

@@ -198,12 +198,13 @@ def _certificate_line(cal: Calibration) -> str | None:
     )
 
 
-def _pose_name(index: int, poses: Sequence[Mapping[str, Any]]) -> str:
+def _pose_name(index: int, poses: Sequence[Mapping[str, object]]) -> str:
     row = next((p for p in poses if p.get("index") == index), {})
     label = row.get("label")
     where = f", label {label}" if label is not None and str(label) != str(index) else ""
     if label is None and "start" in row:
-        where = f", rows {row['start']} to {row['stop'] - 1}"
+        stop = row["stop"]
+        where = f", rows {row['start']} to {stop - 1 if isinstance(stop, int) else stop}"
     return f"pose {index}{where}"
 
 
@@ -218,19 +219,20 @@ def _print_rejected(console: Console, cal: Calibration) -> None:
         )
 
 
-def _flags(pose: Mapping[str, Any], n_fitted: int) -> list[str]:
+def _flags(pose: Mapping[str, object], n_fitted: int) -> list[str]:
     flags = []
     if pose.get("rejected"):
         flags.append("rejected")
     share = pose.get("share")
-    if share is not None and n_fitted > 0 and share > 3.0 / n_fitted:
+    if isinstance(share, (int, float)) and n_fitted > 0 and share > 3.0 / n_fitted:
         flags.append("high residual")
-    if pose.get("pieces"):
-        flags.append(f"merged {len(pose['pieces'])} runs")
+    pieces = pose.get("pieces")
+    if isinstance(pieces, (list, tuple)) and pieces:
+        flags.append(f"merged {len(pieces)} runs")
     return flags
 
 
-def _pose_cells(pose: Mapping[str, Any], i: int, flags: list[str]) -> dict[str, str]:
+def _pose_cells(pose: Mapping[str, object], i: int, flags: list[str]) -> dict[str, str]:
     std, share = pose.get("std"), pose.get("share")
     return {
         "#": str(pose.get("index", i)),
@@ -240,12 +242,12 @@ def _pose_cells(pose: Mapping[str, Any], i: int, flags: list[str]) -> dict[str, 
         "orient.": str(pose.get("orientation", "")),
         "samples": str(pose.get("samples", "")),
         "std": "" if std is None else f"{std:.3g}",
-        "share": "" if share is None else f"{100 * share:.1f} %",
+        "share": f"{100 * share:.1f} %" if isinstance(share, (int, float)) else "",
         "flags": ", ".join(flags),
     }
 
 
-def _print_poses(console: Console, poses: Sequence[Mapping[str, Any]]) -> None:
+def _print_poses(console: Console, poses: Sequence[Mapping[str, object]]) -> None:
     """The first :data:`MAX_POSE_ROWS` poses as a table, the rest summed up in one line."""
     n_fitted = sum(p.get("share") is not None for p in poses)
     flags = [_flags(p, n_fitted) for p in poses]

@@ -26,7 +26,6 @@ import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -107,7 +106,7 @@ class PlannedPose:
         """How to hold the device."""
         return self.orientation.words
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         """Plain Python values for JSON: the words, the orientation and the prediction."""
         o = self.orientation
         return {

@@ -11,7 +11,6 @@ terms: none fitted for lack of span, or some sensor's order at the most the span
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from ..calibration import Calibration
 from ..likelihood.temperature import MAX_ORDER, MIN_SPAN_K
@@ -19,7 +18,7 @@ from ..likelihood.temperature import MAX_ORDER, MIN_SPAN_K
 __all__ = ["temperature_advice", "temperature_span_line"]
 
 
-def temperature_span_line(record: Mapping[str, Any]) -> str | None:
+def temperature_span_line(record: Mapping[str, object]) -> str | None:
     """The poses' temperature span on one line, e.g. ``"poses at 20.4 to 38.0 °C (17.6 K):
     terms up to order 3; chosen: accel 2, mag 2"``, from ``cal.options["temperature"]``;
     ``None`` when the record has no span."""
@@ -28,7 +27,8 @@ def temperature_span_line(record: Mapping[str, Any]) -> str | None:
         return None
     low, high = float(span[0]), float(span[1])
     line = f"poses at {low:.1f} to {high:.1f} °C ({high - low:.1f} K)"
-    allowed = int(record.get("allowed_order", 0) or 0)
+    order = record.get("allowed_order", 0)
+    allowed = int(order or 0) if isinstance(order, (int, float, str)) else 0
     if high - low < MIN_SPAN_K:
         return line + f": temperature terms need {MIN_SPAN_K:g} K"
     line += f": terms up to order {allowed}"
@@ -66,7 +66,8 @@ def temperature_advice(cal: Calibration) -> str | None:
         return None
     low, high = float(span[0]), float(span[1])
     width = high - low
-    allowed = int(record.get("allowed_order", 0) or 0)
+    order = record.get("allowed_order", 0)
+    allowed = int(order or 0) if isinstance(order, (int, float, str)) else 0
     if width < MIN_SPAN_K:
         return (
             f"repeat a pose when the board is warmer: the poses span {width:.1f} K ({low:.1f} "

@@ -185,7 +185,7 @@ def simulate(
     n_poses : int, optional
         Number of poses N (Table 1: 15).
     **overrides
-        Any other key of the preset: ``samples`` (min, max) per pose, ``gravity_z``,
+        Every other key of the preset: ``samples`` (min, max) per pose, ``gravity_z``,
         ``field_x``, ``field_z`` ranges, ``dip_deg`` (min, max) to draw the field from a dip
         instead, ``bias`` half-range, ``gain_spread`` half-range of δK, ``noise_alpha`` range,
         ``pose_distribution`` ("uniform" or "handheld"), ``mag_axes`` (3x3 signed permutation

@@ -361,8 +361,9 @@ def _runs(records: list[Array]) -> list[Array]:
 
 
 def _positive(value: object, name: str) -> float:
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.number))
-    number = float(value) if ok else math.nan  # type: ignore[arg-type]  # checked just above
+    number = math.nan  # anything but a number (a bool is not one here) fails below
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, (bool, np.bool_)):
+        number = float(value)
     if not (math.isfinite(number) and number > 0):
         raise InputError(f"{name} must be a positive finite number, got {value!r}"[:200])
     return number

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -82,7 +82,7 @@ class NoiseModel(ArrayDataclass):
     reduced_chi2: Array
     low_pass: bool = False
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         """The fitted values as plain numbers and lists, for JSON."""
         return {
             "noise_density": self.noise_density.tolist(),
@@ -206,9 +206,11 @@ def _octave_density(m: NDArray[np.int64]) -> Array:
     return np.maximum(hi - lo, 1).astype(float)
 
 
-def _fit_axis(
-    X: Array, y: Array, m: NDArray[np.int64], edfs: Array
-) -> tuple[Array, NDArray[np.bool_], Array, Array, float]:
+#: One axis's fit (:func:`_fit_axis`).
+_AxisFit: TypeAlias = tuple[Array, NDArray[np.bool_], Array, Array, float]
+
+
+def _fit_axis(X: Array, y: Array, m: NDArray[np.int64], edfs: Array) -> _AxisFit:
     """Iteratively reweighted, non-negative weighted least squares of one axis (the rows to
     fit only), then the sandwich covariance: parameters ``(N², B², K²)``, free mask, their
     covariance, EDF (k,), χ² per degree of freedom.
@@ -312,7 +314,7 @@ def fit_noise_model(
             "τ): no noise to measure; check the column (a stuck sensor or a placeholder)"
         )
 
-    def fit(start: float) -> tuple[NDArray[np.bool_], list[tuple[Any, ...]]]:
+    def fit(start: float) -> tuple[NDArray[np.bool_], list[_AxisFit]]:
         rows = (taus >= start * (1 - 1e-12)) & (taus <= tau_max * (1 + 1e-12))
         if int(rows.sum()) < 3:
             raise InputError(

@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, ParameterCovariance
+from ..covariance import BlockIndex
 
 __all__ = ["predict_accuracy"]
 
@@ -103,7 +103,7 @@ def _norm_and_direction(
     ref = math.sqrt(float(f @ f))  # np.linalg.norm's number, without its wrapper
     P = _param_block(cal.covariance, sensor)
     q2 = sc.pose_noise_std**2
-    Kinv: NDArray[np.floating[Any]] = np.linalg.inv(sc.gain) if inverse is None else inverse
+    Kinv = np.linalg.inv(sc.gain) if inverse is None else inverse
     # radial: z = K⁻ᵀ v, g = [z ⊗ u, z]; E[z_j u_a z_k u_b] = |f|² Σ K⁻¹_cj K⁻¹_dk E[v v v v]
     E = np.empty((12, 12))
     KT = Kinv.T
@@ -154,7 +154,7 @@ _ROW, _COL = np.divmod(np.arange(9), 3)
 
 
 @functools.lru_cache(maxsize=64)
-def _positions(names: tuple[str, ...]) -> Any:
+def _positions(names: tuple[str, ...]) -> BlockIndex | None:
     """The index that takes both sensors' 24 gain and bias parameters, in order, out of the
     covariance of ``names`` (``None``: not all there): two slices when they run in order (the
     usual layout; a view instead of fancy indexing), else :func:`numpy.ix_` of their

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -79,7 +78,7 @@ class PoseCorrelation:
         """The effective number of independent poses, ``N / max(τ, 1)``."""
         return self.poses / max(self.tau, 1.0)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         return {
             "tau": self.tau,
             "lags": self.lags,
@@ -160,10 +159,10 @@ def widen_for_correlation(cal: Calibration) -> Calibration:
         diagnostics = dataclasses.replace(diagnostics, status=STATUS)
     record = {**worst.to_dict(), "sensors": {s: c.to_dict() for s, c in found.items()}}
     finding = Correlated(
-        tau=float(record["tau"]),
-        effective_poses=float(record["effective_poses"]),
-        poses=int(record["poses"]),
-        widening=float(record["widening"]),
+        tau=float(worst.tau),
+        effective_poses=float(worst.effective),
+        poses=int(worst.poses),
+        widening=float(worst.widening),
     )
     return dataclasses.replace(
         cal,
