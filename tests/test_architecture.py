@@ -37,6 +37,7 @@ RANK = {
     "comparison": 1.8,  # two calibrations side by side (called by the calibration)
     "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)
     "thermal": 1.9,  # a bias against temperature: the model and its evaluation
+    "interference": 1.9,  # the magnetometer's term in current or throttle: the model
     "calibration": 2,
     "stats": 3,
     "logs": 3,

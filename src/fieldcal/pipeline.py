@@ -46,6 +46,7 @@ from .settings import (
 )
 from .stats.pose_stats import check_spread, stats_from_means
 from .trust.continuous_motion import trust_continuous
+from .trust.interference_stage import with_interference
 from .trust.targets import Targets
 
 __all__ = [
@@ -291,7 +292,32 @@ def run_log(
     found: PoseSet | None = None,
     on_progress: Callable[[str], None] | None = None,
 ) -> LogCalibration:
-    """Find a log's poses and calibrate from them: the path of ``fieldcal calibrate``.
+    """Find a log's poses and calibrate from them: the path of ``fieldcal calibrate``; a
+    flight log's GPS position is the ``location`` when none is given, and a log with battery
+    current or throttle gets the magnetometer's interference term
+    (:func:`fieldcal.trust.interference_stage.with_interference`). The parameters are those
+    of :func:`_run_log`."""
+    located: list[str] = []
+    where = log.metadata.get("location")
+    if settings.trust.location is None and where:
+        date = settings.trust.date or log.metadata.get("date")
+        trust = dataclasses.replace(settings.trust, location=where, date=date)
+        settings = dataclasses.replace(settings, trust=trust)
+        located.append(f"location {where} from the log's GPS (the World Magnetic Model there)")
+    run = _run_log(log, settings, found=found, on_progress=on_progress)
+    cal, note = with_interference(run.calibration, log)
+    notes = (*located, *run.notes, *([note] if note else []))
+    return dataclasses.replace(run, calibration=cal, notes=notes)
+
+
+def _run_log(
+    log: Log,
+    settings: LogSettings = _DEFAULT_SETTINGS,
+    *,
+    found: PoseSet | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> LogCalibration:
+    """Find a log's poses and calibrate from them.
 
     Parameters
     ----------

@@ -26,6 +26,7 @@ from ..calibration import Accuracy, Calibration, Reason, Verdict
 from ..likelihood.temperature import MIN_SPAN_K
 from ..reference import FieldReference
 from ..stats.pose_stats import PoseStats
+from .interference_fit import interference_reasons
 from .targets import DEFAULT_TARGETS, Targets
 
 __all__ = [
@@ -43,6 +44,26 @@ Array = NDArray[np.float64]
 
 #: code -> (level, message template). Each message names the cause and the fix.
 RULES: dict[str, tuple[str, str]] = {
+    "interference_unusable": (
+        "fail",
+        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
+        "{peak:.3g} {unit} (above 60 %, ArduPilot's compassmot limit): {heading:.1f}° of heading "
+        "error uncorrected, {corrected:.1f}° after correction; move the compass away from the "
+        "power leads, ESCs and motors (a GPS/compass mast) or twist the power leads together",
+    ),
+    "interference": (
+        "warn",
+        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
+        "{peak:.3g} {unit} (30-60 %, ArduPilot's compassmot grey zone): {heading:.1f}° of "
+        "heading error uncorrected, {corrected:.1f}° after correction; load the compensation "
+        "(COMPASS_MOT_*, CAL_MAG*_COMP), and better move the compass away from the power leads "
+        "or twist them together",
+    ),
+    "interference_not_identifiable": (
+        "warn",
+        "the magnetometer's interference in {input} is not identifiable from this log: "
+        "{missing}; no compensation is given",
+    ),
     "not_converged": (
         "fail",
         "the optimiser did not converge ({detail}); record more orientations or raise the "
@@ -587,6 +608,13 @@ def _temperature_span(case: Case) -> Iterator[Fired]:
 
 
 #: The rules, run in this order by :func:`judge` (reasons of one level keep it).
+def _interference(case: Case) -> Iterator[Fired]:
+    """The magnetometer's interference term (:mod:`.interference_fit`): not identifiable, or
+    above ArduPilot's 30 % / 60 % of the Earth's field."""
+    if case.cal.mag is not None:
+        yield from interference_reasons(case.cal.mag.interference)
+
+
 CHECKS: tuple[Check, ...] = (
     _converged,
     _degenerate,
@@ -602,6 +630,7 @@ CHECKS: tuple[Check, ...] = (
     _likelihood,
     _correlated,
     _temperature_span,
+    _interference,
 )
 
 _ORDER = {"fail": 2, "warn": 1, "note": 0}

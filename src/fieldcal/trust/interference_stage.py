@@ -1,0 +1,58 @@
+"""The interference stage after a log's calibration: the term fitted with the trajectory held
+(:mod:`.interference_fit`), attached to the magnetometer, and its verdict reasons added."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..calibration import Calibration, Verdict
+from ..logs import Log
+from .interference_fit import fit_interference, held_trajectory, interference_reasons
+from .verdict import reason
+
+__all__ = ["with_interference"]
+
+
+_LEVELS = {"note": 0, "warn": 1, "fail": 2}
+
+
+def with_interference(cal: Calibration, log: Log) -> tuple[Calibration, str]:
+    """``cal`` with the magnetometer's interference term fitted on ``log`` (its current or
+    throttle column, :attr:`Log.inputs`), and the verdict's reasons about it; unchanged when
+    the log has no such column or no magnetometer. Returns the note for the user."""
+    if not log.inputs or log.mag is None or cal.mag is None:
+        return cal, ""
+    rotations, source = held_trajectory(
+        log.attitude, log.time, np.asarray(cal.rotations), cal.options.get("epoch_step")
+    )
+    if rotations is None:
+        return cal, f"interference term not fitted: {source}"
+    model = fit_interference(
+        log.mag,
+        rotations,
+        log.inputs,
+        start_gain=cal.mag.gain,
+        start_bias=cal.mag.bias,
+        temperature=log.temperature,
+        trajectory=source,
+    )
+    mag = dataclasses.replace(cal.mag, interference=model)
+    verdict = cal.verdict
+    if verdict is not None:
+        added = [reason(code, **values) for code, values in interference_reasons(model)]
+        reasons = sorted((*verdict.reasons, *added), key=lambda r: -_LEVELS[r.level])
+        worst = max((_LEVELS[r.level] for r in reasons), default=0)
+        level = max(worst, {"pass": 0, "warn": 1, "fail": 2}[verdict.level])
+        verdict = Verdict({2: "fail", 1: "warn", 0: "pass"}[level], tuple(reasons))
+    what = ", ".join(model.inputs)
+    if model.identifiable:
+        note = (
+            f"interference in {what} fitted with the trajectory held ({source}): "
+            f"{100 * model.field_share:.0f} % of the Earth's field at {model.span[0, 1]:.3g} "
+            f"{model.units[0]}"
+        )
+    else:
+        note = f"interference in {what} not identifiable: {model.reason}"
+    return dataclasses.replace(cal, mag=mag, verdict=verdict), note
