@@ -156,3 +156,14 @@ def test_unidentified_term_is_not_exported():
     assert "COMPASS_MOT" not in text.replace("# Motor compensation not written", "")
     assert "hover longer" in text
     assert _parse_parm(text) == _parse_parm(export(cal, "ardupilot"))
+
+
+def test_second_compass_gets_its_own_names():
+    cal = _with_term(_device("ardupilot"))
+    cal = dataclasses.replace(cal, options={**cal.options, "mag_instance": 1})
+    params = _parse_parm(export(cal, "ardupilot"))
+    assert {f"COMPASS_{g}2_X" for g in ("OFS", "DIA", "ODI", "MOT")} <= set(params)
+    assert "COMPASS_OFS_X" not in params and params["COMPASS_MOTCT"] == 2.0
+    px4 = _with_term(_device("px4"))
+    px4 = dataclasses.replace(px4, options={**px4.options, "mag_instance": 1})
+    assert {"CAL_MAG1_XOFF", "CAL_MAG1_XCOMP"} <= set(_parse_qgc(export(px4, "px4")))

@@ -196,6 +196,8 @@ def flight_table(log: FlightLog, *, mag: int | None = None, imu: int | None = No
     metadata = dict(log.metadata)
     metadata["log_format"] = log.kind
     metadata["mag_unit"] = chosen["mag"].unit if "mag" in chosen else ""
+    if "mag" in chosen:
+        metadata["mag_instance"] = str(chosen["mag"].instance)
     return Table(log.path, names, columns, notes=notes, metadata=metadata)
 
 

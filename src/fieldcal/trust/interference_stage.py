@@ -55,4 +55,7 @@ def with_interference(cal: Calibration, log: Log) -> tuple[Calibration, str]:
         )
     else:
         note = f"interference in {what} not identifiable: {model.reason}"
-    return dataclasses.replace(cal, mag=mag, verdict=verdict), note
+    options = dict(cal.options)
+    if log.metadata.get("mag_instance", "0").isdigit():  # a flight log's --mag N, for exports
+        options["mag_instance"] = int(log.metadata.get("mag_instance", "0"))
+    return dataclasses.replace(cal, mag=mag, verdict=verdict, options=options), note

@@ -47,7 +47,7 @@ from .autopilot import (
     parameters,
 )
 from .common import comment_header, exact
-from .motor_comp import ardupilot_motor, zero_input_bias
+from .motor_comp import ardupilot_motor, for_instance, zero_input_bias
 
 __all__ = ["CONTENT", "FORMULA", "OFFSETS_MAX", "RANGES", "write"]
 
@@ -145,6 +145,7 @@ def write(cal: Calibration, *, allow_out_of_range: bool = False) -> str:
             f"# OUT OF RANGE (--allow-out-of-range): the length of COMPASS_OFS_X/Y/Z, {length:.6g},"
             f" exceeds COMPASS_OFFS_MAX {OFFSETS_MAX:g}"
         )
-    lines += motor_lines
+    params, outside, instance_lines = for_instance(params, outside, cal, "ardupilot")
+    lines += motor_lines + instance_lines
     lines += parameter_lines(params, outside, lambda name, value: f"{name} {exact(value)}")
     return "\n".join(lines) + "\n"

@@ -26,9 +26,9 @@ from numpy.typing import NDArray
 
 from ...calibration import Calibration
 from ...interference import InterferenceModel
-from .autopilot import AutopilotCalibration
+from .autopilot import AutopilotCalibration, ParameterRange
 
-__all__ = ["ardupilot_motor", "px4_power", "zero_input_bias"]
+__all__ = ["ardupilot_motor", "for_instance", "px4_power", "zero_input_bias"]
 
 Array = NDArray[np.float64]
 
@@ -96,3 +96,30 @@ def px4_power(cal: Calibration, instance: int = 0) -> tuple[list[tuple[str, floa
 def _relative(model: InterferenceModel) -> float:
     size = float(np.linalg.norm(model.coefficients[0]))
     return float(np.linalg.norm(model.std[0])) / size if size > 0 else 0.0
+
+
+def for_instance(
+    params: list[tuple[str, float]],
+    outside: dict[str, ParameterRange],
+    cal: Calibration,
+    firmware: str,
+) -> tuple[list[tuple[str, float]], dict[str, ParameterRange], list[str]]:
+    """The compass parameters renamed for the magnetometer instance the calibration was made
+    from (``cal.options["mag_instance"]``, a flight log's ``--mag N``): ArduPilot's second and
+    third compasses are ``COMPASS_OFS2_X``, ``COMPASS_MOT2_X`` ... (AP_Compass.cpp
+    ``var_info``), PX4's ``CAL_MAG1_XOFF`` ...; the ranges are the same for every instance."""
+    instance = int(cal.options.get("mag_instance", 0) or 0)
+    if instance == 0:
+        return params, outside, []
+
+    def rename(name: str) -> str:
+        if firmware != "ardupilot":
+            return name.replace("CAL_MAG0_", f"CAL_MAG{instance}_")
+        for group in ("COMPASS_OFS_", "COMPASS_DIA_", "COMPASS_ODI_", "COMPASS_MOT_"):
+            if name.startswith(group):
+                return name.replace(group, f"{group[:-1]}{instance + 1}_")
+        return name
+
+    renamed = [(rename(name), value) for name, value in params]
+    marked = {rename(name): rng for name, rng in outside.items()}
+    return renamed, marked, [f"# Magnetometer instance {instance} (the log's --mag {instance})."]

@@ -60,7 +60,7 @@ from .autopilot import (
     parameters,
 )
 from .common import NAMES, TEMPERATURE_FORMULA, comment_header, cubic, exact, temperature_terms
-from .motor_comp import px4_power, zero_input_bias
+from .motor_comp import for_instance, px4_power, zero_input_bias
 
 __all__ = [
     "CONTENT",
@@ -166,6 +166,8 @@ def write(
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
+    params, outside, instance_lines = for_instance(params, outside, cal, "px4")
+    lines[-2:-2] = instance_lines
     lines += parameter_lines(
         params,
         outside,
