@@ -20,6 +20,7 @@ a share of the Earth's field and the heading error it causes, uncorrected and af
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -97,7 +98,7 @@ class InterferenceModel(ArrayDataclass):
         if not np.isfinite(self.coefficients).all():
             raise ValueError("interference coefficients must be finite")
 
-    def shift(self, inputs: dict[str, ArrayLike]) -> Array:
+    def shift(self, inputs: Mapping[str, ArrayLike]) -> Array:
         """The reading's shift ``Σ c_i (u_i − u_i,ref)`` (n, 3) for the inputs given by name
         (one value or one per reading); an input missing is taken at its reference."""
         total: Array = np.zeros(3)

@@ -133,3 +133,53 @@ def test_flight_csv_through_the_command_line(tmp_path):
     codes = [r["code"] for r in (doc.get("calibration", doc))["verdict"]["reasons"]]
     assert "interference" in codes or "interference_unusable" in codes
     assert Calibration.from_json(cal.to_json()) == cal
+
+
+def test_apply_takes_the_term_off_with_each_rows_current(tmp_path):
+    """apply on a log with the current column: the corrected field has the constant norm of
+    the calibrated field with the term removed; without the column, a one-line error."""
+    from fieldcal.calibration import Calibration
+    from fieldcal.logs.apply import apply_to_file
+
+    flight = simulate_flight(11, seconds=60.0, interference_ut=30.0, attitude_error_deg=0.0)
+    model = _fit(flight)
+    gain = flight.gain
+    bias = flight.bias + flight.coefficients * flight.current.mean()  # holds at the mean
+    sensor = _sensor(gain, bias, model)
+    cal = Calibration(None, sensor, None, np.array([1.0, 0.0, 0.0]), np.zeros((0, 3, 3)), "x")
+    cols = flight.columns()
+    path = tmp_path / "f.csv"
+    names = ["mx", "my", "mz", "current"]
+    np.savetxt(
+        path,
+        np.column_stack([cols[k] for k in names]),
+        delimiter=",",
+        header=",".join(names),
+        comments="",
+        fmt="%.10g",
+    )
+    out = tmp_path / "out.csv"
+    apply_to_file(cal, path, out)
+    data = np.genfromtxt(out, delimiter=",", names=True)
+    fixed = np.column_stack([data["mx_cal"], data["my_cal"], data["mz_cal"]])
+    norm = np.linalg.norm(fixed, axis=1)
+    assert norm.std() < 0.01 * norm.mean()  # the 30 µT of interference are gone
+    plain = np.linalg.norm(np.linalg.solve(gain, (flight.mag - bias).T).T, axis=1)
+    assert plain.std() > 5 * norm.std()
+    bare = tmp_path / "bare.csv"
+    np.savetxt(
+        bare,
+        np.column_stack([cols[k] for k in names[:3]]),
+        delimiter=",",
+        header=",".join(names[:3]),
+        comments="",
+        fmt="%.10g",
+    )
+    with pytest.raises(Exception, match="no current column; name it with --current-col"):
+        apply_to_file(cal, bare, tmp_path / "o2.csv")
+
+
+def _sensor(gain, bias, model):
+    from fieldcal.calibration import SensorCalibration
+
+    return SensorCalibration(gain, bias, 0.09 * np.eye(3), interference=model)
