@@ -151,11 +151,14 @@ def flight_table(log: FlightLog, *, mag: int | None = None, imu: int | None = No
         ("mag", mag, "--mag"),
         ("accel", imu, "--imu"),
         ("gyro", imu, "--imu"),
-        ("temperature", imu, "--imu"),
     ):
         stream = choose(log, role, instance, flag)
         if stream is not None:
             chosen[role] = stream
+    # the IMU's temperature when logged (an IMU without one is no error)
+    temps = [s for s in log.of("temperature") if imu is None or s.instance == imu]
+    if temps:
+        chosen["temperature"] = temps[0]
     for role in ("current", "voltage", "throttle", "attitude"):
         stream = choose(log, role, None, "")
         if stream is not None:
