@@ -167,3 +167,32 @@ def test_second_compass_gets_its_own_names():
     px4 = _with_term(_device("px4"))
     px4 = dataclasses.replace(px4, options={**px4.options, "mag_instance": 1})
     assert {"CAL_MAG1_XOFF", "CAL_MAG1_XCOMP"} <= set(_parse_qgc(export(px4, "px4")))
+
+
+def test_c_library_applies_the_term(tmp_path):
+    """fieldcal_mag_driven takes c (u - u_ref) off the raw reading, then the calibration:
+    equal to the calibration of the clean reading to float32 precision; without a term the
+    library is as before (no such function)."""
+    import ctypes
+
+    from _clib import Library, v3
+
+    cal = _with_term(fieldcal.calibrate(*_table1()))
+    lib = Library(cal, tmp_path / "lib")
+    P, f = ctypes.POINTER, ctypes.c_float
+    lib.lib.fieldcal_mag_driven.argtypes = [P(type(lib.factory)), P(f), f, P(f)]
+    clean, loaded, u = _readings(cal, 3)
+    out = (ctypes.c_float * 3)()
+    got = []
+    for raw, amps in zip(loaded, u, strict=True):
+        lib.lib.fieldcal_mag_driven(ctypes.byref(lib.factory), v3(raw), amps, out)
+        got.append(list(out))
+    want = cal.correct_mag(clean)
+    np.testing.assert_allclose(got, want, atol=1e-4 * np.abs(want).max())
+    plain = Library(fieldcal.calibrate(*_table1()), tmp_path / "plain")
+    assert "fieldcal_mag_driven" not in (plain.folder / "fieldcal_cal.h").read_text()
+
+
+def _table1():
+    session = fieldcal.simulate("paper", seed=3)
+    return session.accel, session.mag

@@ -47,6 +47,7 @@ void fieldcal_gyro(const fieldcal_cal_t *cal, const float raw[3], float out[3])
     fieldcal_apply(cal->gyro_matrix, cal->gyro_bias, raw, out);
 }
 @TEMPERATURE_CODE@
+@INTERFERENCE_CODE@
 
 float fieldcal_tilt(const float accel[3], float *roll_deg, float *pitch_deg)
 {

@@ -71,6 +71,7 @@ void fieldcal_accel(const fieldcal_cal_t *cal, const float raw[3], float out[3])
 void fieldcal_mag(const fieldcal_cal_t *cal, const float raw[3], float out[3]);
 void fieldcal_gyro(const fieldcal_cal_t *cal, const float raw[3], float out[3]);
 @TEMPERATURE_API@
+@INTERFERENCE_API@
 /* Tilt from level (degrees) of a body-frame specific force; roll and pitch (Z-Y-X, degrees)
  * when the pointers are not NULL. */
 float fieldcal_tilt(const float accel[3], float *roll_deg, float *pitch_deg);
