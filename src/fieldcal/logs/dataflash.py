@@ -22,17 +22,14 @@ Timestamps: ``TimeUS`` (µs, the autopilot's clock).
 
 from __future__ import annotations
 
-import importlib
 from collections import defaultdict
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
-from .flight import FlightLog, Stream, median_location, stream
+from .flight import FlightLog, Stream, median_location, optional_module, stream, unreadable
 
 __all__ = ["read_dataflash", "uncorrect_compass"]
 
@@ -41,13 +38,6 @@ Array = NDArray[np.float64]
 _INSTALL = "reading ArduPilot DataFlash logs needs pymavlink; pip install 'fieldcal[dataflash]'"
 _TYPES = ["IMU", "IMU2", "IMU3", "MAG", "MAG2", "MAG3", "BAT", "CTUN", "ATT", "GPS", "PARM"]
 _BODY = "body FRD"
-
-
-def _pymavlink() -> ModuleType:
-    try:
-        return importlib.import_module("pymavlink.DFReader")
-    except ImportError:
-        raise InputError(_INSTALL) from None
 
 
 def _instance(message: Any, name: str) -> int:
@@ -185,7 +175,7 @@ def read_dataflash(path: str | Path) -> FlightLog:
     InputError
         pymavlink missing, or a file it cannot read (one line, with the fix).
     """
-    dfreader = _pymavlink()
+    dfreader = optional_module("pymavlink.DFReader", _INSTALL)
     path = Path(path)
     try:
         with path.open("rb") as handle:
@@ -195,11 +185,8 @@ def read_dataflash(path: str | Path) -> FlightLog:
         reader = dfreader.DFReader_binary(str(path), zero_time_base=False)
         rows, params = _collect(reader)
     except Exception as exc:  # DFReader raises bare exceptions on damaged files
-        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
-        raise InputError(
-            f"{path}: not a readable ArduPilot DataFlash log ({reason}); give the .bin file "
-            "as downloaded from the autopilot"
-        ) from None
+        fix = "give the .bin file as downloaded from the autopilot"
+        raise unreadable(path, exc, "ArduPilot DataFlash log", fix) from None
     found = [s for s in _streams(rows, params) if s is not None]
     found.sort(key=lambda s: (s.instance, -len(s.time)))
     metadata = _position(rows)

@@ -22,8 +22,11 @@ table's notes (``docs/flight-logs.md``).
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,7 +42,9 @@ __all__ = [
     "flight_table",
     "info_lines",
     "median_location",
+    "optional_module",
     "stream",
+    "unreadable",
 ]
 
 Array = NDArray[np.float64]
@@ -263,3 +268,19 @@ def median_location(lat: Array, lon: Array, alt: Array) -> str | None:
     alt_ok = alt[ok][np.isfinite(alt[ok])]
     height = float(np.median(alt_ok)) if alt_ok.size else 0.0
     return f"{float(np.median(lat[ok])):.6f},{float(np.median(lon[ok])):.6f},{height:.1f}"
+
+
+def optional_module(name: str, install: str) -> ModuleType:
+    """The optional extra ``name`` (a flight log's reader), imported when such a file is read;
+    the one-line ``install`` advice when it is missing."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        raise InputError(install) from None
+
+
+def unreadable(path: Path, exc: BaseException, what: str, fix: str) -> InputError:
+    """The one-line error for a file a reader library could not read (its own exceptions
+    are many and bare): the file, what it should be, the library's reason, the fix."""
+    reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+    return InputError(f"{path}: not a readable {what} ({reason}); {fix}")

@@ -24,16 +24,13 @@ often as the calibrated one (the small logging profile logs ``sensor_*`` at 0.1 
 from __future__ import annotations
 
 import datetime as dt
-import importlib
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
-from .flight import FlightLog, Stream, median_location, stream
+from .flight import FlightLog, Stream, median_location, optional_module, stream, unreadable
 
 __all__ = ["read_ulog"]
 
@@ -57,13 +54,6 @@ _TOPICS = [
 ]
 _RAW = "sensor frame, uncalibrated"
 _BODY = "body FRD, calibrated by PX4"
-
-
-def _pyulog() -> ModuleType:
-    try:
-        return importlib.import_module("pyulog")
-    except ImportError:
-        raise InputError(_INSTALL) from None
 
 
 def _time(data: dict[str, Any]) -> Array:
@@ -189,16 +179,13 @@ def read_ulog(path: str | Path) -> FlightLog:
     InputError
         pyulog missing, or a file it cannot read (one line, with the fix).
     """
-    pyulog = _pyulog()
+    pyulog = optional_module("pyulog", _INSTALL)
     path = Path(path)
     try:
         ulog = pyulog.ULog(str(path), _TOPICS)
     except Exception as exc:  # pyulog raises bare exceptions on damaged files
-        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
-        raise InputError(
-            f"{path}: not a readable PX4 ULog ({reason}); give the .ulg file as downloaded "
-            "from the vehicle"
-        ) from None
+        fix = "give the .ulg file as downloaded from the vehicle"
+        raise unreadable(path, exc, "PX4 ULog", fix) from None
     found: list[Stream] = []
     for data in ulog.data_list:
         if len(data.data.get("timestamp", ())) == 0:
