@@ -3,6 +3,7 @@ ArduPilot DataFlash written by a small writer and read back through pymavlink.""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -136,3 +137,26 @@ def test_damaged_flight_logs_are_refused_in_one_line(tmp_path):
         csv = tmp_path / "a.csv"
         csv.write_text("ax,ay,az\n1,2,3\n")
         load_log(csv, mag_instance=1)
+
+
+def test_real_ulog_says_what_the_interference_term_lacks(tmp_path):
+    """The CubeOrange sample hovers at under 1 A: the term is not identifiable, and the verdict
+    says what to fly; the GPS position is the location (the WMM's field)."""
+    from click.testing import CliRunner
+
+    from fieldcal.cli import cli
+
+    path = _ulog("sample_log_small.ulg")
+    out = tmp_path / "cal.json"
+    result = CliRunner().invoke(
+        cli, ["calibrate", str(path), "--sensors", "mag", "--poses", "samples", "-o", str(out)]
+    )
+    assert out.is_file(), result.output
+    assert "from the log's GPS" in result.output
+    doc = json.loads(out.read_text())
+    cal = doc.get("calibration", doc)
+    model = cal["mag"]["interference"]
+    assert model["identifiable"] is False
+    assert "current never exceeded" in model["reason"] and "throttle sweep" in model["reason"]
+    codes = [r["code"] for r in cal["verdict"]["reasons"]]
+    assert "interference_not_identifiable" in codes
