@@ -298,7 +298,7 @@ def run_log(
     (:func:`fieldcal.trust.interference_stage.with_interference`). The parameters are those
     of :func:`_run_log`."""
     located: list[str] = []
-    where = log.metadata.get("location")
+    where = log.metadata.get("gps_location")  # a flight log's GPS (logs.flight)
     if settings.trust.location is None and where:
         date = settings.trust.date or log.metadata.get("date")
         trust = dataclasses.replace(settings.trust, location=where, date=date)

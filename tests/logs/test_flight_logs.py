@@ -49,7 +49,7 @@ def test_ulog_matches_pyulogs_own_values(name):
     ours = np.linalg.norm(log.accel, axis=1)
     assert abs(np.median(ours) - np.median(pyulog_norm)) < 0.05
     assert 9.3 < np.median(ours) < 10.3  # at rest or hovering: gravity
-    lat, lon, alt = map(float, log.metadata["location"].split(","))
+    lat, lon, alt = map(float, log.metadata["gps_location"].split(","))
     wmm = expected_field((lat, lon, alt), log.metadata.get("date"))
     norm_ut = 100.0 * np.median(np.linalg.norm(log.mag, axis=1))  # gauss -> µT
     assert abs(norm_ut / (wmm.intensity / 1000.0) - 1.0) < 0.15, (norm_ut, wmm.intensity / 1000.0)
@@ -107,7 +107,7 @@ def test_dataflash_through_pymavlink(tmp_path):
     assert np.allclose(log.accel[:, 2], -9.81, atol=1e-4)
     assert np.allclose(log.gyro[:, 2], np.radians(20.0), atol=1e-6)
     assert 5.0 <= log.inputs["current"].min() and log.inputs["current"].max() <= 25.0
-    assert log.metadata["location"].startswith("47.4")
+    assert log.metadata["gps_location"].startswith("47.4")
     assert log.metadata["mag_unit"] == "mGauss"
     # the attitude's yaw follows the logged one
     q = log.attitude

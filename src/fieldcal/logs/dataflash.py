@@ -163,7 +163,7 @@ def _position(rows: dict[tuple[str, int], list[dict[str, Any]]]) -> dict[str, st
     if lla is None or not fix.any():
         return {}
     where = median_location(lla[fix, 0], lla[fix, 1], lla[fix, 2])
-    return {} if where is None else {"location": where}
+    return {} if where is None else {"gps_location": where}
 
 
 def read_dataflash(path: str | Path) -> FlightLog:

@@ -12,7 +12,7 @@ magnetometer), dropping the samples outside the span every core sensor covers:
 - the attitude quaternion is interpolated componentwise after its sign is made continuous,
   then normalised (a step of a few degrees between samples: the error is far below a degree);
 - GPS fixes give one position (the median of the 3-D fixes) in the table's metadata
-  (``location``: ``LAT,LON,ALT_M``), used as ``--location`` is, for the World Magnetic Model.
+  (``gps_location``: ``LAT,LON,ALT_M``), used as ``--location`` is, for the World Magnetic Model.
 
 Columns: ``t`` (s from the first row), ``ax ay az``, ``gx gy gz``, ``mx my mz``, ``temp``
 (°C), ``current`` (A), ``voltage`` (V), ``throttle`` (0-1), ``attitude_qw`` ... ``attitude_qz``
@@ -213,7 +213,7 @@ def info_lines(log: FlightLog) -> list[str]:
     """What ``fieldcal info LOG`` prints: each role's streams with instance, source, samples,
     rate, unit and frame; the first of each role marked as the default."""
     lines = [f"{log.path}: {log.kind}"]
-    for key in ("location", "date", "vehicle", "firmware"):
+    for key in ("gps_location", "date", "vehicle", "firmware"):
         if key in log.metadata:
             lines.append(f"  {key}: {log.metadata[key]}")
     seen: set[str] = set()

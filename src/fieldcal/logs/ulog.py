@@ -161,7 +161,7 @@ def _position(ulog: Any) -> dict[str, str]:
         where = median_location(lat, lon, alt)
         if where is None:
             continue
-        out = {"location": where}
+        out = {"gps_location": where}
         times = np.asarray(d.get("time_utc_usec", np.zeros(len(fix))), dtype=float)[fix]
         utc = times[times > 1e15]
         if utc.size:
