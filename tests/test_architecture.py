@@ -41,6 +41,7 @@ RANK = {
     "covariance": 1.96,  # the named parameters' covariance, the χ² certificate
     "verdicts": 1.96,  # a verdict and its reasons, the predicted accuracy
     "thermal": 1.9,  # a bias against temperature: the model and its evaluation
+    "interference": 1.9,  # the magnetometer's term in current or throttle: the model
     "calibration": 2,
     "stats": 3,
     "logs": 3,

@@ -50,6 +50,7 @@ from .geometry.frames import (
     orthogonal_polar_factor,
     twin_flip,
 )
+from .interference import InterferenceModel
 from .limits import LARGEST, RANGE_TEXT, in_range
 from .notebook import calibration_html
 from .reference import FieldReference
@@ -121,7 +122,7 @@ class SensorCalibration(ArrayDataclass):
         default=None, repr=False, metadata={"stored": False}
     )
     temperature: TemperatureModel | None = None
-
+    interference: InterferenceModel | None = None
     JSON_DERIVED = ("gain_std", "bias_std")
 
     def __post_init__(self) -> None:

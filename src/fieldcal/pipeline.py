@@ -44,6 +44,7 @@ from .settings import (
 )
 from .stats.pose_stats import check_spread, stats_from_means
 from .trust.continuous_motion import trust_continuous
+from .trust.interference_stage import with_interference
 from .trust.targets import Targets
 from .trust.verdict import with_late_checks
 
@@ -297,7 +298,9 @@ def run_log(
     on_progress: Callable[[str], None] | None = None,
 ) -> LogCalibration:
     """Find a log's poses and calibrate from them, or from its continuous motion: the path of
-    ``fieldcal calibrate``.
+    ``fieldcal calibrate``. A flight log's GPS position is the ``location`` when none is
+    given; a log with battery current or throttle gets the magnetometer's interference term
+    (:func:`fieldcal.trust.interference_stage.with_interference`).
 
     Parameters
     ----------
@@ -337,6 +340,7 @@ def run_log(
 def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
     """Every setting a log's calibration needs checked once, before the long work, and the
     mode chosen: the still detector's options given with ``poses="auto"`` ask for rests."""
+    settings, located = _located(log, settings)
     detect, fit = settings.detect, settings.fit
     if found is None and isinstance(detect.poses, PoseSet):  # poses= given found poses
         found = detect.poses
@@ -350,6 +354,7 @@ def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
         )
     _check_choice("accel_sign", fit.accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, fit.mag_axes, fit.accel_sign)
+    notes = [*located, *notes]
     tuned = [name for name in _STILL_OPTIONS if getattr(detect, name) is not None]
     if mode == "auto" and tuned:
         mode = "still"
@@ -364,6 +369,18 @@ def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
     reference, magnitudes = field_settings(fit, settings.trust)
     targets = targets_for(settings.targets, settings.trust)
     return _Job(settings, found, mode, why_not, tuple(notes), P, reference, magnitudes, targets)
+
+
+def _located(log: Log, settings: LogSettings) -> tuple[LogSettings, list[str]]:
+    """``settings`` with a flight log's GPS position (:mod:`fieldcal.logs.flight`) as the
+    ``location`` when none is given, and the note saying so."""
+    where = log.metadata.get("gps_location")
+    if settings.trust.location is not None or not where:
+        return settings, []
+    date = settings.trust.date or log.metadata.get("date")
+    trust = dataclasses.replace(settings.trust, location=where, date=date)
+    note = f"location {where} from the log's GPS (the World Magnetic Model there)"
+    return dataclasses.replace(settings, trust=trust), [note]
 
 
 #: The still detector's own options (given with ``poses="auto"``, they choose rests).
@@ -452,14 +469,19 @@ def _run_poses(
             notes=notes,
             on_progress=on_progress,
         )
-    cal = _late(_fold_back(cal, job), log)
+    cal = _late(_fold_back(cal, job), log, notes)
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
 
 
-def _late(cal: Calibration, log: Log) -> Calibration:
-    """The rules on what the fit's stages and the input added (:data:`fieldcal.trust.verdict.
-    LATE_CHECKS`: the gyroscope's gain and segments, a gain no unit explains, a temperature
-    column left out), judged on the calibration in the user's units (every path)."""
+def _late(cal: Calibration, log: Log, notes: list[str]) -> Calibration:
+    """The stages after the fit on the calibration in the user's units (the magnetometer's
+    interference term, :func:`fieldcal.trust.interference_stage.with_interference`), and the
+    rules on what the stages and the input added (:data:`fieldcal.trust.verdict.LATE_CHECKS`:
+    the gyroscope's gain and segments, a gain no unit explains, a temperature column left out,
+    the interference), for every path."""
+    cal, note = with_interference(cal, log)
+    if note:
+        notes.append(note)
     if log.temperature_ignored is not None:
         column, why = log.temperature_ignored
         ignored = TemperatureIgnored(column, why)
@@ -574,7 +596,7 @@ def _run_continuous(
         targets=job.targets,
         magnitudes=job.magnitudes,
     )
-    cal = _late(_fold_back(cal, job), log)
+    cal = _late(_fold_back(cal, job), log, notes)
     traj = cal.options["trajectory"]
     notes.append(
         f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "

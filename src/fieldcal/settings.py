@@ -151,6 +151,8 @@ NON_NEGATIVE = Range(0.0, 1e12, low_open=False)
 _DIP_ALLOWANCE = Range(0.0, 89.0, low_open=False)
 #: A probability strictly between 0 and 1.
 _PROBABILITY = Range(0.0, 1.0 - 1e-12)
+#: A flight log's sensor instance (``--mag N``, ``--imu N``).
+_INSTANCE = Range(0.0, 255.0, low_open=False)
 
 #: What an option takes: ``text``, ``flag`` (on or off), ``switch`` (on, off or unset), a
 #: :class:`Range`, a tuple of choices (``None``: the choices of a registry the command line
@@ -386,6 +388,41 @@ class ReadSettings:
         default=None,
         metadata=meta(
             "--mag-topic", "ROS bag: the sensor_msgs/MagneticField topic (default: the one)."
+        ),
+    )
+    mag_instance: int | None = field(
+        default=None,
+        metadata=meta(
+            "--mag",
+            "Flight log (.ulg, .bin): the magnetometer instance (default: the primary; "
+            "'fieldcal info LOG' lists them).",
+            valid=_INSTANCE,
+            metavar="N",
+        ),
+    )
+    imu_instance: int | None = field(
+        default=None,
+        metadata=meta(
+            "--imu",
+            "Flight log (.ulg, .bin): the IMU instance (default: the primary).",
+            valid=_INSTANCE,
+            metavar="N",
+        ),
+    )
+    current_col: str | None = field(
+        default=None,
+        metadata=meta(
+            "--current-col",
+            "Battery-current column (A) for the magnetometer's interference term (default: "
+            "recognised: current, curr, battery_current).",
+        ),
+    )
+    throttle_col: str | None = field(
+        default=None,
+        metadata=meta(
+            "--throttle-col",
+            "Throttle column (0-1) for the interference term when no current is logged "
+            "(default: recognised: throttle).",
         ),
     )
     sensors: str | None = field(

@@ -313,7 +313,7 @@ def test_every_command_is_registered_once_by_its_module():
 
     expected = {
         "calibrate", "apply", "export", "report", "capture", "plan", "noise", "store",
-        "batch", "demo", "simulate", "field",
+        "batch", "demo", "simulate", "field", "info",
     }  # fmt: skip
     assert set(cli.commands) == expected
     owners = {name: command.callback.__module__ for name, command in cli.commands.items()}

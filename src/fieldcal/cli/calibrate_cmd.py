@@ -122,6 +122,8 @@ def calibrate(
     type=float,
     help="One temperature (deg C) for every row, for a log without a temperature column.",
 )
+@click.option("--current-col", help="Battery-current column (A) for an interference term.")
+@click.option("--throttle-col", help="Throttle column (0-1) for an interference term.")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 @force_option
 def apply(
@@ -135,6 +137,8 @@ def apply(
     mag_topic: str | None,
     temp_col: str | None,
     temperature: float | None,
+    current_col: str | None,
+    throttle_col: str | None,
     quiet: bool,
     force: bool,
 ) -> None:
@@ -143,7 +147,8 @@ def apply(
     The output's suffix names its format; CSV to CSV is streamed in chunks, every input
     line kept byte for byte. A ROS bag gives its table (t, ax.., gx.., mx..) with the
     calibrated columns. A calibration with temperature terms uses each row's temperature
-    (the log's temperature column, or --temperature).
+    (the log's temperature column, or --temperature); one with an interference term each
+    row's battery current or throttle (recognised, or --current-col/--throttle-col).
     """
     claim([output], {"calibration": cal_json, "log": log}, force)
     library.check_pyarrow(log, output)
@@ -163,6 +168,8 @@ def apply(
             on_progress=progress,
             temp_col=temp_col,
             temperature=temperature,
+            current_col=current_col,
+            throttle_col=throttle_col,
         )
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())

@@ -164,6 +164,7 @@ class _Group(click.Group):
         "store_cmd",
         "batch_cmd",
         "demo_cmd",
+        "info_cmd",
     )
     _loading = False
 

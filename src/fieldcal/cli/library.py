@@ -27,6 +27,9 @@ WHERE: dict[str, str] = {
     "TimeRemainingColumn": "rich.progress",
     "Calibration": "..calibration",
     "load_log": "..logs",
+    "FLIGHT_READERS": "..logs.readers",
+    "regular_file": "..logs.readers",
+    "info_lines": "..logs.flight",
     "check_pyarrow": "..logs.apply",
     "apply_to_file": "..logs.apply",
     "run_log": "..pipeline",
@@ -63,6 +66,7 @@ WHERE: dict[str, str] = {
 
 __all__ = [
     "FIGURES",
+    "FLIGHT_READERS",
     "BarColumn",
     "Calibration",
     "CaptureOptions",
@@ -87,6 +91,7 @@ __all__ = [
     "dumps",
     "expand_logs",
     "expected_field",
+    "info_lines",
     "key_reader",
     "load_log",
     "open_source",
@@ -96,6 +101,7 @@ __all__ = [
     "print_summary",
     "print_truth_comparison",
     "print_verdict",
+    "regular_file",
     "run_capture",
     "run_log",
     "simulate_continuous",
@@ -124,6 +130,8 @@ if TYPE_CHECKING:
     from ..capture.view import LiveView, PlainView, key_reader
     from ..logs import load_log
     from ..logs.apply import apply_to_file, check_pyarrow
+    from ..logs.flight import info_lines
+    from ..logs.readers import FLIGHT_READERS, regular_file
     from ..noise import characterise_noise
     from ..output.drift import drift_figure, drift_table
     from ..output.noise_figures import write_noise_figure

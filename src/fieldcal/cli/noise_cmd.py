@@ -10,7 +10,7 @@ import click
 from .. import _files
 from . import library
 from .group import check_matplotlib, claim, cli, force_option, open_console, progress_line, read_cal
-from .options import POSITIVE, keywords, sensor_columns
+from .options import POSITIVE, flight_instances, keywords, sensor_columns
 
 __all__ = ["noise"]
 
@@ -48,6 +48,7 @@ def _unit(text: str | None) -> str | float | None:
 @click.option("--gyro-unit", help="Raw gyroscope unit: deg/s, rad/s, or rad/s per count.")
 @click.option("--rate", type=POSITIVE, help="Sample rate in Hz when there is no time column.")
 @sensor_columns
+@flight_instances
 @click.option("--time-col", help="Time column (s; ms/us/ns recognised).")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 @force_option

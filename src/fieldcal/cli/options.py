@@ -51,6 +51,7 @@ __all__ = [
     "check_reference",
     "detect_options",
     "fit_options",
+    "flight_instances",
     "keywords",
     "load",
     "log_options",
@@ -194,6 +195,9 @@ def _stage(*stages: Stage, leave: tuple[str, ...] = ()) -> list[str]:
 POSES_OPTION = option_for(OPTIONS["poses"])
 #: ``--accel-cols``, ``--mag-cols``, ``--gyro-cols``: every command that reads a log.
 sensor_columns = _options(["accel_cols", "mag_cols", "gyro_cols"])
+#: ``--mag N``, ``--imu N``: a flight log's sensor instances (``noise``; ``calibrate`` and
+#: ``batch`` take them with the reader's options).
+flight_instances = _options(["mag_instance", "imu_instance"])
 #: The reader's options: columns, missing values, the text's decimal mark, time resets, topics.
 log_options = _options(READ_OPTIONS)
 #: Still detection's options (``--poses`` is :data:`POSES_OPTION`).

@@ -50,9 +50,11 @@ from numpy.typing import NDArray
 
 from .._files import replacing, same_file
 from ..errors import InputError
+from ..interference import InterferenceModel
 from .arrow_parser import float_column, pyarrow_module
 from .columns import explicit_columns, recognise_columns
-from .readers import Table, npz_table, read_table, to_float
+from .drive_inputs import drive_inputs
+from .readers import FLIGHT_READERS, Table, npz_table, read_table, to_float
 from .rosbag import is_bag, read_bag
 from .text import HEAD_LINES, layout, parse_numbers
 from .text_lines import _split
@@ -137,6 +139,8 @@ def apply_to_file(
     mag_topic: str | None = None,
     temp_col: str | None = None,
     temperature: float | None = None,
+    current_col: str | None = None,
+    throttle_col: str | None = None,
 ) -> dict[str, list[str]]:
     """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``.
 
@@ -166,6 +170,10 @@ def apply_to_file(
         recognised by name, as ``calibrate`` does).
     temperature : float, optional
         One temperature (°C) for every row, instead of a column.
+    current_col, throttle_col : str, optional
+        For a calibration with an interference term (:mod:`fieldcal.interference`): the
+        battery-current or throttle column (default: recognised by name); the log is then
+        read whole (a CSV is written again, not streamed line by line).
 
     Returns
     -------
@@ -187,9 +195,13 @@ def apply_to_file(
     sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
     columns = {"accel": accel_cols, "mag": mag_cols}
     thermal = _Thermal(cal, sensors, temp_col, temperature)
+    drive = _Drive(cal, current_col, throttle_col)
     if is_bag(src):  # (a rosbag2 bag is a folder)
         bag = read_bag(src, imu_topic=imu_topic, mag_topic=mag_topic, on_progress=on_progress)
         return _apply_table(cal, src, dst, sensors, columns, table=bag, thermal=thermal)
+    if drive.model is not None or src.suffix.lower() in FLIGHT_READERS:
+        # the interference term needs each row's current: the table path reads the whole log
+        return _apply_table(cal, src, dst, sensors, columns, decimal, thermal=thermal, drive=drive)
     try:
         mode = src.stat().st_mode
     except FileNotFoundError:
@@ -218,6 +230,40 @@ def apply_to_file(
         except csv.Error as exc:
             raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
     return _apply_table(cal, src, dst, sensors, columns, decimal, thermal=thermal)
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """A calibration's interference term as apply needs it (:mod:`fieldcal.interference`):
+    the magnetometer's shift for each row's current or throttle, from the column recognised
+    by name or named (``--current-col``, ``--throttle-col``)."""
+
+    cal: Calibration
+    current_col: str | None
+    throttle_col: str | None
+
+    @property
+    def model(self) -> InterferenceModel | None:
+        model = getattr(self.cal.mag, "interference", None)
+        return model if model is not None and model.identifiable else None
+
+    def shift(self, table: Table) -> Array | None:
+        """The magnetometer's shift (n, 3) for the table's rows; None without a term."""
+        model = self.model
+        if model is None:
+            return None
+        rows = np.arange(table.n_rows)
+        inputs, _ = drive_inputs(table, rows, self.current_col, self.throttle_col)
+        wanted = model.inputs[0]
+        if wanted not in inputs:
+            flag = "--current-col" if wanted == "current" else "--throttle-col"
+            raise InputError(
+                f"{table.path}: the calibration's magnetometer has an interference term in "
+                f"{wanted} but the log has no {wanted} column; name it with {flag}"
+            )
+        if "temperature" in model.inputs and "temp" in table.columns:
+            inputs["temperature"] = table.numeric("temp")
+        return model.shift(inputs)
 
 
 @dataclass(frozen=True)
@@ -780,8 +826,10 @@ def _apply_table(
     *,
     table: Table | None = None,
     thermal: _Thermal,
+    drive: _Drive | None = None,
 ) -> dict[str, list[str]]:
-    """The calibrated columns through a table read whole (``table``: one already read)."""
+    """The calibrated columns through a table read whole (``table``: one already read);
+    ``drive`` takes the magnetometer's interference term off with each row's current."""
     fmt_in, fmt_out = output_format(src), output_format(dst)
     arrays: dict[str, NDArray[Any]] = {}
     compressed = False
@@ -806,8 +854,15 @@ def _apply_table(
     used = _columns_for_apply(table.path, table.names, sensors, columns)
     temp_name = thermal.find(table.path, table.names)
     t = thermal.values(None if temp_name is None else table.numeric(temp_name), temp_name)
+    shift = None if drive is None else drive.shift(table)
     fixed = {
-        sensor: _correct(cal, sensor, np.column_stack([table.numeric(c) for c in cols]), t)
+        sensor: _correct(
+            cal,
+            sensor,
+            np.column_stack([table.numeric(c) for c in cols])
+            - (shift if sensor == "mag" and shift is not None else 0.0),
+            t,
+        )
         for sensor, cols in used.items()
     }
     reported = _reported(used, temp_name)

@@ -49,6 +49,7 @@ from .columns import (
     recognise_columns,
     sensor_like_triples,
 )
+from .drive_inputs import attitude_of, drive_inputs
 from .readers import Table, read_table
 from .rosbag import is_bag, read_bag
 
@@ -111,6 +112,11 @@ class Log:
     #: :func:`~fieldcal.logs.columns.label_columns`), each kept row's value: the advice when
     #: too few poses are found tries them
     labels: dict[str, NDArray[np.generic]] = field(default_factory=dict)
+    #: what drives the magnetometer's interference term, per kept row: ``{"current": A}`` or
+    #: ``{"throttle": 0-1}`` (:mod:`~fieldcal.logs.drive_inputs`); empty without such a column
+    inputs: dict[str, Array] = field(default_factory=dict)
+    #: the autopilot's attitude estimate of a flight log (n, 4), body → NED, scalar first
+    attitude: Array | None = None
 
     @property
     def n(self) -> int:
@@ -423,6 +429,7 @@ def load_log(
         raise InputError(f"temp_col must be a column name, got {temp_col!r}")
     if sensors not in (None, "accel", "mag", "both"):
         raise InputError(f"sensors must be 'accel', 'mag' or 'both', got {sensors!r}"[:200])
+    current_col, throttle_col = reading.pop("current_col", None), reading.pop("throttle_col", None)
     table = _open_table(path, reading)
     used = _pick_columns(table, accel_cols, mag_cols, gyro_cols, time_col, pose_col, need, temp_col)
     used = _chosen_sensors(table, used, sensors, accel_cols is not None, mag_cols is not None)
@@ -454,6 +461,8 @@ def load_log(
                 )
             notes.append(f"temperature column {name!r} {why}: ignored")
             temperature, ignored = None, (name, why)
+    inputs, input_notes = drive_inputs(table, index, current_col, throttle_col)
+    notes += input_notes
     taken = [c for cols in used.values() for c in cols]
     labels = {
         name: table.columns[name] if index.size == table.n_rows else table.columns[name][index]
@@ -476,6 +485,8 @@ def load_log(
         temperature=temperature,
         temperature_ignored=ignored,
         labels=labels,
+        inputs=inputs,
+        attitude=attitude_of(table, index),
     )
 
 

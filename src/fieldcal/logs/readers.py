@@ -23,6 +23,8 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .arrow_parser import pyarrow_module
+from .dataflash import read_dataflash
+from .flight import FlightLog, flight_table
 from .text import (
     LONGEST_FIELD,
     Table,
@@ -31,11 +33,14 @@ from .text import (
     read_text,
     to_float,
 )
+from .ulog import read_ulog
 
 __all__ = [
+    "FLIGHT_READERS",
     "LONGEST_FIELD",
     "READERS",
     "Table",
+    "instance_number",
     "npz_table",
     "read_table",
     "regular_file",
@@ -144,6 +149,27 @@ READERS: dict[str, Callable[[Path], Table]] = {
 }
 
 
+#: suffix -> flight-log reader (PX4 ULog through pyulog, ArduPilot DataFlash through
+#: pymavlink; each optional extra imported when such a file is read): :mod:`.flight`.
+FLIGHT_READERS: dict[str, Callable[[Path], FlightLog]] = {
+    ".ulg": read_ulog,
+    ".bin": read_dataflash,
+}
+
+
+def instance_number(value: object, flag: str) -> int | None:
+    """A sensor instance (``--mag N``, ``--imu N``) as an int; a one-line error otherwise."""
+    if value is None:
+        return None
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not (number.is_integer() and 0 <= number <= 255):
+        raise InputError(f"{flag} {value!r}: give an instance number 0, 1, 2 ...")
+    return int(number)
+
+
 def regular_file(path: str | Path) -> Path:
     """``path`` if it is a regular file (following links); an :class:`InputError` otherwise.
 
@@ -174,9 +200,11 @@ def read_table(
     *,
     decimal: str | None = None,
     on_progress: Callable[[str], None] | None = None,
+    mag_instance: int | None = None,
+    imu_instance: int | None = None,
 ) -> Table:
-    """Read a log: delimited text (any suffix but those in :data:`READERS`), ``.npz`` or
-    ``.parquet``.
+    """Read a log: delimited text (any suffix but those in :data:`READERS`), ``.npz``,
+    ``.parquet``, or a flight log (:data:`FLIGHT_READERS`: ``.ulg``, ``.bin``).
 
     Parameters
     ----------
@@ -188,6 +216,8 @@ def read_table(
     on_progress : callable, optional
         Text logs only: told ``"reading <name>: <rows> rows"`` about every million rows and at
         the end.
+    mag_instance, imu_instance : int, optional
+        Flight logs only: the magnetometer and IMU instances (``--mag N``, ``--imu N``).
 
     Returns
     -------
@@ -201,6 +231,16 @@ def read_table(
         One line: the file, the row and column where it applies, what was found, the fix.
     """
     path = regular_file(path)
+    mag = instance_number(mag_instance, "--mag")
+    imu = instance_number(imu_instance, "--imu")
+    flight = FLIGHT_READERS.get(path.suffix.lower())
+    if flight is not None:
+        return flight_table(flight(path), mag=mag, imu=imu)
+    if mag is not None or imu is not None:
+        raise InputError(
+            f"{path}: --mag/--imu choose a flight log's sensor instance (.ulg, .bin); for this "
+            "log name the columns with --mag-cols/--accel-cols"
+        )
     reader = READERS.get(path.suffix.lower())
     try:
         if reader is None:

@@ -29,6 +29,7 @@ from ..likelihood.temperature import MIN_SPAN_K
 from ..reference import FieldReference
 from ..stats.pose_stats import PoseStats
 from ..verdicts import Level, VerdictLevel
+from .interference_fit import interference_reasons
 from .targets import DEFAULT_TARGETS, Targets
 
 __all__ = [
@@ -50,6 +51,26 @@ Array = NDArray[np.float64]
 
 #: code -> (level, message template). Each message names the cause and the fix.
 RULES: dict[str, tuple[Level, str]] = {
+    "interference_unusable": (
+        "fail",
+        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
+        "{peak:.3g} {unit} (above 60 %, ArduPilot's compassmot limit): {heading:.1f}° of heading "
+        "error uncorrected, {corrected:.1f}° after correction; move the compass away from the "
+        "power leads, ESCs and motors (a GPS/compass mast) or twist the power leads together",
+    ),
+    "interference": (
+        "warn",
+        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
+        "{peak:.3g} {unit} (30-60 %, ArduPilot's compassmot grey zone): {heading:.1f}° of "
+        "heading error uncorrected, {corrected:.1f}° after correction; load the compensation "
+        "(COMPASS_MOT_*, CAL_MAG*_COMP), and better move the compass away from the power leads "
+        "or twist them together",
+    ),
+    "interference_not_identifiable": (
+        "warn",
+        "the magnetometer's interference in {input} is not identifiable from this log: "
+        "{missing}; no compensation is given",
+    ),
     "not_converged": (
         "fail",
         "the optimiser did not converge ({detail}); record more orientations or raise the "
@@ -806,6 +827,14 @@ def _motion(case: Case) -> Iterator[Fired]:
 
 
 #: The rules, run in this order by :func:`judge` (reasons of one level keep it).
+@_owns("interference", "interference_unusable", "interference_not_identifiable")
+def _interference(case: Case) -> Iterator[Fired]:
+    """The magnetometer's interference term (:mod:`.interference_fit`): not identifiable, or
+    above ArduPilot's 30 % / 60 % of the Earth's field."""
+    if case.cal.mag is not None:
+        yield from interference_reasons(case.cal.mag.interference)
+
+
 CHECKS: tuple[Check, ...] = (
     _converged,
     _degenerate,
@@ -834,6 +863,7 @@ LATE_CHECKS: tuple[Check, ...] = (
     _gyro_segments,
     _unexplained_scale,
     _temperature_ignored,
+    _interference,
 )
 
 _ORDER = {"fail": 2, "warn": 1, "note": 0}

@@ -47,6 +47,7 @@ from .autopilot import (
     parameters,
 )
 from .common import comment_header, exact
+from .motor_comp import ardupilot_motor, for_instance, zero_input_bias
 
 __all__ = ["CONTENT", "FORMULA", "OFFSETS_MAX", "RANGES", "write"]
 
@@ -61,6 +62,7 @@ RANGES = (
     ParameterRange("COMPASS_ODI_{}", -1.0, 1.0, True, _FIT),
     ParameterRange("INS_ACCOFFS_{}", -3.5, 3.5, False, "AP_InertialSensor.cpp @Range"),
     ParameterRange("INS_ACCSCAL_{}", 0.8, 1.2, False, "AP_InertialSensor.cpp @Range"),
+    ParameterRange("COMPASS_MOT_{}", -1000.0, 1000.0, False, "AP_Compass.cpp MOT_X @Range"),
 )
 
 FORMULA = (
@@ -102,7 +104,9 @@ def write(cal: Calibration, *, allow_out_of_range: bool = False) -> str:
         "INS_ACCOFFS_{}",
         "INS_ACCSCAL_{}",
     )
-    params = parameters(ap, -ap.mag_bias, names)
+    params = parameters(ap, -zero_input_bias(cal, ap), names)
+    motor, motor_lines = ardupilot_motor(cal, ap)
+    params += motor
     outside = check_ranges(params, RANGES, "ArduPilot", allow_out_of_range=allow_out_of_range)
     length = float(np.linalg.norm(ap.mag_bias))
     long_offsets = not length <= OFFSETS_MAX
@@ -141,5 +145,7 @@ def write(cal: Calibration, *, allow_out_of_range: bool = False) -> str:
             f"# OUT OF RANGE (--allow-out-of-range): the length of COMPASS_OFS_X/Y/Z, {length:.6g},"
             f" exceeds COMPASS_OFFS_MAX {OFFSETS_MAX:g}"
         )
+    params, outside, instance_lines = for_instance(params, outside, cal, "ardupilot")
+    lines += motor_lines + instance_lines
     lines += parameter_lines(params, outside, lambda name, value: f"{name} {exact(value)}")
     return "\n".join(lines) + "\n"

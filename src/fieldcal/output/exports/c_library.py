@@ -537,6 +537,42 @@ _TEMPERATURE_BLOB = """\
     for (i = 0; i < 12; i++) f[n++] = &c->gyro_temp[i];"""
 
 
+def _interference(cal: Calibration) -> tuple[str, str]:
+    """The C of the magnetometer's interference term (:mod:`fieldcal.interference`), when the
+    calibration has one the log identified: constants beside the calibration (its struct and
+    blob are unchanged), and ``fieldcal_mag_driven`` taking ``c (u − u_ref)`` off the raw
+    reading before the calibration, ``u`` the input the term was fitted in."""
+    model = None if cal.mag is None else cal.mag.interference
+    if model is None or not model.identifiable:
+        return "", ""
+    name, unit = model.inputs[0], model.units[0]
+    c = ", ".join(c_float(float(v)) for v in model.coefficients[0])
+    api = (
+        f"/* The magnetometer with its interference term: u is the {name} ({unit}); the raw\n"
+        f" * reading less FIELDCAL_INTERFERENCE_C * (u - FIELDCAL_INTERFERENCE_REF), then\n"
+        " * fieldcal_mag. */\n"
+        "#define FIELDCAL_HAS_INTERFERENCE 1\n"
+        f"#define FIELDCAL_INTERFERENCE_REF {c_float(float(model.reference[0]))}\n"
+        "extern const float FIELDCAL_INTERFERENCE_C[3]; /* raw units per unit of u */\n"
+        "void fieldcal_mag_driven(const fieldcal_cal_t *cal, const float raw[3], float u, "
+        "float out[3]);"
+    )
+    code = (
+        f"\nconst float FIELDCAL_INTERFERENCE_C[3] = {{{c}}};\n\n"
+        "void fieldcal_mag_driven(const fieldcal_cal_t *cal, const float raw[3], float u, "
+        "float out[3])\n{\n"
+        "    const float d = u - FIELDCAL_INTERFERENCE_REF;\n"
+        "    float r[3];\n"
+        "    int j;\n"
+        "    for (j = 0; j < 3; j++) {\n"
+        "        r[j] = raw[j] - FIELDCAL_INTERFERENCE_C[j] * d;\n"
+        "    }\n"
+        "    fieldcal_mag(cal, r, out);\n"
+        "}"
+    )
+    return api, code
+
+
 def files(cal: Calibration, sensor_id: int | None = None) -> dict[str, str]:
     """``fieldcal_cal.h`` and ``fieldcal_cal.c`` for this calibration.
 
@@ -572,6 +608,7 @@ def files(cal: Calibration, sensor_id: int | None = None) -> dict[str, str]:
         "KNOWN_FLAGS": f"0x{_known_flags(thermal):x}u",
         "FACTORY": _initializer(sid, flags, fields),
     }
+    parts["INTERFERENCE_API"], parts["INTERFERENCE_CODE"] = _interference(cal)
     header = _fill(_source("fieldcal_cal.h"), parts)
     source = _fill(_source("fieldcal_cal.c"), parts)
     # the pair's mark (FIELDCAL_PAIR_ID): a digest of both texts, so a header from another

@@ -60,6 +60,7 @@ from .autopilot import (
     parameters,
 )
 from .common import NAMES, TEMPERATURE_FORMULA, comment_header, cubic, exact, temperature_terms
+from .motor_comp import for_instance, px4_power, zero_input_bias
 
 __all__ = [
     "CONTENT",
@@ -138,7 +139,9 @@ def write(
         "CAL_ACC0_{}OFF",
         "CAL_ACC0_{}SCALE",
     )
-    params = parameters(ap, ap.mag_bias, names)
+    params = parameters(ap, zero_input_bias(cal, ap), names)
+    power, power_lines = px4_power(cal)
+    params += power
     outside = check_ranges(params, RANGES, "PX4", allow_out_of_range=allow_out_of_range)
     lines = comment_header(cal, "#")
     lines += [
@@ -158,13 +161,21 @@ def write(
         + (f"{len(outside)} OUTSIDE, written marked." if outside else "all inside."),
         f"# Vehicle {sysid}, component {compid} (fieldcal export --sysid/--compid): QGroundControl",
         "# loads these lines only onto the vehicle with that system id.",
+        *power_lines,
+        *power_lines,
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
+    params, outside, instance_lines = for_instance(params, outside, cal, "px4")
+    lines[-2:-2] = instance_lines
     lines += parameter_lines(
         params,
         outside,
-        lambda name, value: f"{sysid}\t{compid}\t{name}\t{exact(value)}\t{_REAL32}",
+        lambda name, value: (
+            f"{sysid}\t{compid}\t{name}\t{int(value)}\t{_INT32}"
+            if name == "CAL_MAG_COMP_TYP"
+            else f"{sysid}\t{compid}\t{name}\t{exact(value)}\t{_REAL32}"
+        ),
     )
     lines += _thermal_lines(cal, sysid, compid)
     return "\n".join(lines) + "\n"

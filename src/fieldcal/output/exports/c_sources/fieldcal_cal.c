@@ -192,6 +192,7 @@ int fieldcal_gyro(const fieldcal_cal_t *cal, const float raw[3], float out[3])
                      raw, out);
 }
 @TEMPERATURE_CODE@
+@INTERFERENCE_CODE@
 
 float fieldcal_tilt(const float accel[3], float *roll_deg, float *pitch_deg)
 {

@@ -110,6 +110,7 @@ int fieldcal_accel(const fieldcal_cal_t *cal, const float raw[3], float out[3]);
 int fieldcal_mag(const fieldcal_cal_t *cal, const float raw[3], float out[3]);
 int fieldcal_gyro(const fieldcal_cal_t *cal, const float raw[3], float out[3]);
 @TEMPERATURE_API@
+@INTERFERENCE_API@
 /* Tilt from level (degrees) of a body-frame specific force; roll and pitch (Z-Y-X, degrees)
  * when the pointers are not NULL. NaN (all three) for a zero or non-finite accel. */
 float fieldcal_tilt(const float accel[3], float *roll_deg, float *pitch_deg);

@@ -1,0 +1,299 @@
+"""Fitting the magnetometer's interference term (Eq. I1, :mod:`fieldcal.interference`) with the
+orientation trajectory held: a second stage after the calibration.
+
+The trajectory is the autopilot's attitude estimate when the log has one (a flight log), else
+the continuous-motion fit's rotations (interpolated between its kept epochs). With ``R_j``
+held, Eq. I1 is linear in everything else but the field's direction: each magnetometer axis
+``r`` regresses on ``[R_j ĥ, 1, u_j]`` — the gain (``A = K_m |h|``, a full 3×3 matrix: it also
+takes in any rotation between the magnetometer's and the trajectory's frames), the bias and the
+coefficients jointly, by least squares, which is the likelihood's maximum for Gaussian noise of
+one variance per axis; the unit direction ``ĥ`` (world frame) alternates with them until it
+settles. So the gains and biases are refitted with the term (the first stage's absorbed it),
+and only the trajectory is held — what this stage does not do is let the trajectory move with
+the term (``docs/flight-logs.md`` says why that is a small loss when the current varies
+independently of the orientation, and that the autopilot's estimate may itself have been
+pulled by the interference).
+
+Error bars: the residuals of a flight are correlated (the trajectory's errors, body
+acceleration, vibration), so the coefficients' standard errors are the sandwich over
+contiguous blocks (:data:`BLOCKS`, Bartlett weights over :data:`LAG` neighbours: Newey–West on
+the blocks' scores, with the small-sample factor ``B/(B−1)``). The Cramér–Rao bound is the
+same regression's for white noise of the variance half the residuals' first differences show
+(the sensor's own noise, the slow errors left out): the best a log of this length and
+excitation can give.
+
+Identifiability: the term is determined only when the input varies, and independently of the
+orientation: the input's span (at least :data:`MIN_SPAN`) and its share not explained by
+the field's body-frame direction and a constant (``1 − R²`` at least :data:`MIN_FREE`) are
+checked, and when either fails the coefficients are not reported (zeros, ``identifiable``
+false) and ``reason`` says what to fly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation, Slerp
+
+from ..interference import InterferenceModel
+
+__all__ = [
+    "BLOCKS",
+    "FAIL_SHARE",
+    "HEATER_SPAN_K",
+    "LAG",
+    "MIN_FREE",
+    "MIN_SPAN",
+    "WARN_SHARE",
+    "fit_interference",
+    "held_trajectory",
+    "interference_reasons",
+    "quaternion_rotations",
+]
+
+Array = NDArray[np.float64]
+
+#: Contiguous blocks the sandwich sums the scores over, and the neighbouring blocks whose
+#: scores' covariance it takes in (Bartlett weights). Lags made no difference beyond noise on
+#: the simulated flights (benchmarks/flight.py: 94 % coverage with 0, 88 % with 4, the
+#: trajectory exact), so none by default.
+BLOCKS = 40
+LAG = 0
+#: Smallest span of each input that identifies its coefficients: 3 A of current (a hover
+#: against the ground idle: ArduPilot's compassmot asks for 50-75 % throttle), 0.15 of
+#: throttle.
+MIN_SPAN = {"current": 3.0, "throttle": 0.15}
+#: Smallest share of the input's variance the orientation does not explain (``1 − R²``).
+MIN_FREE = 0.05
+#: ArduPilot's guidance on compassmot's interference, as a share of the Earth's field: "less
+#: than 30% ... acceptable", "31% ~ 60% ... grey zone", "higher than 60% you should try moving
+#: your APM/PX further up and away from the sources of interference" (ArduPilot/ardupilot_wiki,
+#: common/source/docs/common-compass-setup-advanced.rst, "CompassMot", commit 055ae21a).
+WARN_SHARE = 0.30
+FAIL_SHARE = 0.60
+#: A temperature that moves this much during the log gets its own term (a heater).
+HEATER_SPAN_K = 5.0
+_UNITS = {"current": "A", "throttle": "0-1", "temperature": "degC"}
+
+
+def quaternion_rotations(q: Array) -> Array:
+    """World → body rotation matrices (n, 3, 3) from body → NED quaternions (scalar first)."""
+    w, x, y, z = np.asarray(q, dtype=float).T
+    C = np.empty((len(w), 3, 3))  # body -> world
+    C[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    C[:, 0, 1] = 2 * (x * y - w * z)
+    C[:, 0, 2] = 2 * (x * z + w * y)
+    C[:, 1, 0] = 2 * (x * y + w * z)
+    C[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    C[:, 1, 2] = 2 * (y * z - w * x)
+    C[:, 2, 0] = 2 * (x * z - w * y)
+    C[:, 2, 1] = 2 * (y * z + w * x)
+    C[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return np.transpose(C, (0, 2, 1))
+
+
+def _direction(h0: Array, x: Array) -> Array:
+    """The unit direction ``h0`` moved by ``x`` (2,) in the plane orthogonal to it."""
+    e1 = np.cross(h0, [1.0, 0.0, 0.0] if abs(h0[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(h0, e1)
+    h = h0 + x[0] * e1 + x[1] * e2
+    return np.asarray(h / np.linalg.norm(h), dtype=float)
+
+
+def _regression(mag: Array, R: Array, U: Array, h0: Array) -> tuple[Array, Array, Array]:
+    """(β (4+k, 3), the design X, ĥ): the linear parameters eliminated (variable projection),
+    the field's two angles by Levenberg–Marquardt on the projected residuals."""
+    n = len(mag)
+
+    def design(x: Array) -> Array:
+        return np.column_stack([R @ _direction(h0, x), np.ones(n), U])
+
+    def projected(x: Array) -> Array:
+        X = design(x)
+        return np.ravel(mag - X @ np.linalg.lstsq(X, mag, rcond=None)[0])
+
+    x = least_squares(projected, np.zeros(2), method="lm", xtol=1e-12, ftol=1e-14).x
+    X = design(x)
+    beta = np.asarray(np.linalg.lstsq(X, mag, rcond=None)[0], dtype=np.float64)
+    return beta, X, _direction(h0, x)
+
+
+def _sandwich(X: Array, E: Array, blocks: int) -> tuple[Array, Array]:
+    """Per axis, the coefficients' covariance (3, p, p): the sandwich over contiguous blocks
+    with Bartlett weights over :data:`LAG` neighbouring blocks (Newey–West on the blocks'
+    scores: a flight's residuals stay correlated longer than a block); and the white-noise
+    bread ``(XᵀX)⁻¹`` (p, p)."""
+    bread = np.asarray(np.linalg.inv(X.T @ X), dtype=np.float64)
+    edges = np.linspace(0, len(X), blocks + 1).astype(int)
+    lag = min(LAG, blocks - 1)
+    cov = np.empty((3, X.shape[1], X.shape[1]))
+    for r in range(3):
+        scores = np.add.reduceat(X * E[:, r : r + 1], edges[:-1], axis=0)
+        meat = scores.T @ scores
+        for step in range(1, lag + 1):
+            across = scores[step:].T @ scores[:-step]
+            meat += (1.0 - step / (lag + 1.0)) * (across + across.T)
+        cov[r] = bread @ meat @ bread * blocks / (blocks - 1)
+    return cov, bread
+
+
+def _missing(name: str, u: Array, free: float) -> str:
+    """What the log lacks for input ``name`` ("" when nothing)."""
+    lo, hi = float(u.min()), float(u.max())
+    unit = _UNITS[name]
+    if hi - lo < MIN_SPAN[name]:
+        if name == "current" and hi < MIN_SPAN[name]:
+            return (
+                f"current never exceeded {hi:.3g} A: hover longer or add a throttle sweep "
+                f"(at least {MIN_SPAN[name]:g} A of change)"
+            )
+        return (
+            f"the {name} stayed within {lo:.3g}-{hi:.3g} {unit}: add a throttle sweep (climbs "
+            f"and descents) so that it changes by at least {MIN_SPAN[name]:g} {unit}"
+        )
+    if free < MIN_FREE:
+        return (
+            f"the {name} moved with the orientation ({100 * (1 - free):.0f} % of its variation "
+            "follows the heading and tilt): change throttle at several headings"
+        )
+    return ""
+
+
+def _heading_error(A: Array, h: Array, d: Array) -> float:
+    """Worst heading error (degrees) a body-frame disturbance ``d`` (raw units) causes on a
+    level vehicle: its horizontal part against the field's horizontal part."""
+    delta = np.linalg.solve(A, d)  # in units of the field (|ĥ| = 1), the trajectory's body
+    horizontal = math.hypot(float(h[0]), float(h[1]))
+    ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
+    return math.degrees(math.asin(min(1.0, ratio)))
+
+
+def fit_interference(
+    mag: Array,
+    rotations: Array,
+    inputs: dict[str, Array],
+    *,
+    start_gain: Array,
+    start_bias: Array,
+    temperature: Array | None = None,
+    trajectory: str = "",
+) -> InterferenceModel:
+    """The interference term of a log (the module docstring says how).
+
+    Parameters
+    ----------
+    mag : (n, 3) array
+        Raw magnetometer readings, as logged.
+    rotations : (n, 3, 3) array
+        World → body rotations at each reading, held.
+    inputs : dict
+        ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1).
+    start_gain, start_bias : arrays
+        The first stage's magnetometer gain and bias: the field's world direction starts from
+        the readings they correct.
+    temperature : (n,) array, optional
+        °C; a term of its own when it spans :data:`HEATER_SPAN_K` or more (a heater).
+    trajectory : str
+        Where ``rotations`` came from, for the record.
+
+    Returns
+    -------
+    InterferenceModel
+    """
+    names = list(inputs)[:1]
+    columns = [np.asarray(inputs[n], dtype=float) for n in names]
+    if temperature is not None and np.ptp(temperature) >= HEATER_SPAN_K:
+        names.append("temperature")
+        columns.append(np.asarray(temperature, dtype=float))
+    U0 = np.column_stack(columns)
+    reference = U0.mean(axis=0)
+    U = U0 - reference
+    body = np.linalg.solve(start_gain, (mag - start_bias).T).T
+    world = np.einsum("nji,nj->ni", rotations, body)
+    h = np.median(world, axis=0)
+    h /= np.linalg.norm(h)
+    beta, X, h = _regression(mag, rotations, U, h)
+    E = mag - X @ beta
+    k = U.shape[1]
+    blocks = max(2, min(BLOCKS, len(mag) // 20))
+    cov, bread = _sandwich(X, E, blocks)
+    std = np.sqrt(np.stack([np.diag(c)[4:] for c in cov], axis=1))  # (k, 3)
+    white = np.var(np.diff(E, axis=0), axis=0) / 2.0
+    crb = np.sqrt(np.outer(np.diag(bread)[4:], white))
+    # the share of each input's variance the field's direction and a constant leave free
+    Z = X[:, :4]
+    fitted = Z @ np.linalg.lstsq(Z, U, rcond=None)[0]
+    free = 1.0 - np.sum((fitted - U.mean(axis=0)) ** 2, axis=0) / np.maximum(
+        np.sum((U - U.mean(axis=0)) ** 2, axis=0), 1e-300
+    )
+    missing = _missing(names[0], U0[:, 0], float(free[0]))
+    A, C = beta[:3].T, beta[4:]
+    field = float(np.median(np.linalg.norm(X[:, :3] @ A.T, axis=1)))
+    peak = float(U0[:, 0].max()) if names[0] != "temperature" else float(np.ptp(U0[:, 0]))
+    if missing:
+        C = np.zeros((k, 3))
+        std = np.zeros((k, 3))
+        crb = np.zeros((k, 3))
+    d = C[0] * peak
+    return InterferenceModel(
+        inputs=tuple(names),
+        units=tuple(_UNITS[n] for n in names),
+        coefficients=C,
+        reference=reference,
+        std=std,
+        crb=crb,
+        span=np.column_stack([U0.min(axis=0), U0.max(axis=0)]),
+        identifiable=not missing,
+        reason=missing,
+        field_share=float(np.linalg.norm(d)) / field if field > 0 else 0.0,
+        heading_error_deg=_heading_error(A, h, d),
+        heading_error_corrected_deg=_heading_error(A, h, 2.0 * std[0] * peak),
+        trajectory=trajectory,
+    )
+
+
+def held_trajectory(
+    attitude: Array | None, time: Array | None, cal_rotations: Array, epoch_step: int | None
+) -> tuple[Array | None, str]:
+    """The orientations to hold (n, 3, 3) and where they come from: the autopilot's attitude
+    estimate, else the continuous fit's kept rotations interpolated (spherically) to every
+    sample; ``(None, why not)`` without either."""
+    if attitude is not None:
+        return quaternion_rotations(attitude), "the autopilot's attitude estimate"
+    if time is None or epoch_step is None or len(cal_rotations) < 2:
+        return None, (
+            "it needs the orientation at every sample: a flight log with the autopilot's "
+            "attitude, or continuous motion with a gyroscope (--poses continuous)"
+        )
+    at = np.asarray(time, dtype=float)[::epoch_step][: len(cal_rotations)]
+    keys = Rotation.from_matrix(np.asarray(cal_rotations)[: len(at)])
+    clipped = np.clip(time, at[0], at[-1])
+    return Slerp(at, keys)(clipped).as_matrix(), "the continuous fit's trajectory"
+
+
+def interference_reasons(model: InterferenceModel | None) -> list[tuple[str, dict[str, object]]]:
+    """The verdict rules' findings on the term (codes of :data:`fieldcal.trust.verdict.
+    RULES`): ``interference_not_identifiable``, ``interference`` above :data:`WARN_SHARE`,
+    ``interference_unusable`` above :data:`FAIL_SHARE` of the Earth's field."""
+    if model is None:
+        return []
+    name, unit = model.inputs[0], model.units[0]
+    if not model.identifiable:
+        return [("interference_not_identifiable", {"missing": model.reason, "input": name})]
+    values = {
+        "share": model.field_share,
+        "input": name,
+        "peak": float(model.span[0, 1]),
+        "unit": unit,
+        "heading": model.heading_error_deg,
+        "corrected": model.heading_error_corrected_deg,
+    }
+    if model.field_share > FAIL_SHARE:
+        return [("interference_unusable", values)]
+    if model.field_share > WARN_SHARE:
+        return [("interference", values)]
+    return []
