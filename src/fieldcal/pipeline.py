@@ -24,14 +24,15 @@ from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .geometry.rotations import hat, rotation_angle_deg
 from .gyro.estimate import GyroFit, fit_gyro
+from .gyro.gyro_scale import gyro_factor, gyro_scale_problem
 from .gyro.gyro_temperature import with_bias_temperature
 from .gyro.integrate import effective_time, segment_turns
 from .likelihood.cramer_rao import pose_rotation_factors
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.inputs import read_log
 from .logs.log_temperature import pose_temperature_samples
-from .logs.pose_finding import NO_STILL, POSE_SOURCES
-from .logs.pose_hints import pose_advice
+from .logs.pose_finding import NO_STILL, POSE_SOURCES, SHORT_LOG
+from .logs.pose_hints import SEPARATE_READINGS, pose_advice
 from .methods import get as get_method
 from .methods.continuous import fit_continuous
 from .settings import (
@@ -81,7 +82,7 @@ CONTINUOUS_OPTIONS = (
     *TARGET_OPTIONS,
 )
 #: Fit options :func:`run_log` itself reads, whatever estimator it runs.
-_LOG_OPTIONS = ("method", "mag_axes", "accel_sign", "gyro")
+_LOG_OPTIONS = ("method", "mag_axes", "accel_sign", "gyro", "gyro_unit")
 
 Array = NDArray[np.float64]
 
@@ -110,6 +111,9 @@ def _check_poses(
         advice = f"hold the device still in {need - n} or more further orientations"
         if hints is None and poses.source == "still" and turns_slowly(log, rate=rate):
             advice = "the log turns slowly without rests: use --poses windows (poses='windows')"
+        separate = poses.source == "still" and log.time is None and rate is None
+        if separate and log.gyro is None and "--poses samples" not in (hints or ""):
+            advice = f"{SEPARATE_READINGS}; or {advice}"  # Magneto-style: a reading now and then
         why = " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
         raise InputError(
             f"{n} pose(s) found; the {method} method needs at least {need}"
@@ -135,7 +139,9 @@ def _check_poses(
         )
 
 
-def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Calibration:
+def fold_axes(
+    cal: Calibration, P: Array, spec: str, sensor: str = "mag", option: str | None = None
+) -> Calibration:
     """Express a calibration fitted on ``P @ raw`` in terms of the raw columns.
 
     ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
@@ -178,7 +184,8 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
     poses = tuple(
         {**row, key: list(Pt @ np.asarray(row[key]))} if key in row else row for row in cal.poses
     )
-    option = "mag_axes" if sensor == "mag" else "accel_sign"
+    if option is None:
+        option = "mag_axes" if sensor == "mag" else "accel_sign"
     return dataclasses.replace(
         cal,
         **{sensor: new},
@@ -312,7 +319,7 @@ def run_log(
     """
     detect, fit = settings.detect, settings.fit
     poses: str | PoseSet = detect.poses if found is None else found
-    accel_sign, mag_axes, method, gyro = fit.accel_sign, fit.mag_axes, fit.method, fit.gyro
+    accel_sign, mag_axes, gyro = fit.accel_sign, fit.mag_axes, fit.gyro
     rate = detect.rate
     if isinstance(poses, str):
         _check_choice("poses", poses, POSE_MODES)
@@ -323,6 +330,65 @@ def run_log(
         )
     _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, mag_axes, accel_sign)
+    log, gyro_scale, problem = _gyro_in_rad_s(log, fit.gyro_unit, rate, gyro, notes)
+    if problem is not None and (rate is not None or poses == "continuous"):
+        raise InputError(problem)
+    run = _run_log(log, settings, poses, P, notes, on_progress, problem)
+    if gyro_scale == 1.0 or run.calibration.gyro is None:
+        return run
+    # the fit saw rad/s: raw = gain·ω + bias in the logged unit is (gain, bias) / factor
+    cal = fold_axes(
+        run.calibration, np.eye(3) / gyro_scale, str(fit.gyro_unit), "gyro", "gyro_unit"
+    )
+    return dataclasses.replace(run, calibration=cal)
+
+
+def _gyro_in_rad_s(
+    log: Log, unit: str | None, rate: float | None, gyro: bool | None, notes: list[str]
+) -> tuple[Log, float, str | None]:
+    """The log with its gyroscope in rad/s (``--gyro-unit``), the factor applied, and what
+    the gyroscope's integrated turn against the other sensors' says is wrong (a unit or a rate
+    that contradicts the log; :func:`~fieldcal.gyro.gyro_scale.gyro_scale_problem`)."""
+    factor = gyro_factor(unit)
+    if log.gyro is None:
+        return log, factor, None
+    readings: Array = log.gyro * factor
+    if factor != 1.0:
+        log = dataclasses.replace(log, gyro=readings)
+        notes.append(
+            f"gyroscope read in {unit} (--gyro-unit), fitted in rad/s and folded back into its "
+            "gain: the result applies to the raw columns as logged"
+        )
+    problem = None
+    if gyro is not False and log.accel is not None and (log.time is not None or rate):
+        time = np.arange(log.n) / rate if rate else effective_time(log.time)  # type: ignore[arg-type]
+        problem = gyro_scale_problem(
+            time,
+            log.accel,
+            log.mag,
+            readings,
+            rate=rate,
+            has_time=log.time is not None,
+            unit=unit,
+        )
+    return log, factor, problem
+
+
+def _run_log(
+    log: Log,
+    settings: LogSettings,
+    poses: str | PoseSet,
+    P: Array | None,
+    notes: list[str],
+    on_progress: Callable[[str], None] | None,
+    gyro_problem: str | None = None,
+) -> LogCalibration:
+    """:func:`run_log` after the options' checks: the mode chosen and run. ``gyro_problem``:
+    why the gyroscope's scale disagrees with the other sensors' (the continuous estimator,
+    which needs rad/s, is then not run)."""
+    detect, fit = settings.detect, settings.fit
+    accel_sign, mag_axes, method, gyro = fit.accel_sign, fit.mag_axes, fit.method, fit.gyro
+    rate = detect.rate
     gravity_sign = accel_sign == "gravity"
     tuned = [
         name
@@ -364,6 +430,16 @@ def run_log(
             moving = [w for w in caught if MOVING_RESTS in str(w.message)]
             if poses == "auto" and why_not is None and moving:
                 raise InputError(str(moving[0].message))
+            timed = log.time is not None or rate is not None  # else "rests" count samples
+            if poses == "auto" and moving and log.gyro is None and timed:
+                # a hand-waved log: its motion can calibrate only with a gyroscope beside it
+                raise InputError(
+                    f"{str(moving[0].message).split('; hold', 1)[0]}; a log waved by hand without "
+                    "rests is calibrated from its motion only with a gyroscope and time, and "
+                    "this log has no gyroscope columns (name them with --gyro-cols); without "
+                    "one, record rests (hold still in 8 or more orientations, e.g. on the faces "
+                    "and edges of a box) or turn slowly and use --poses windows"
+                )
             for w in caught:  # the detector's own warnings, passed on
                 warnings.warn(w.message, w.category, stacklevel=2)
             if poses == "auto":
@@ -373,6 +449,11 @@ def run_log(
             if poses != "auto" or why_not is not None:
                 raise
             why = "its rests move" if MOVING_RESTS in str(exc) else str(exc)
+            if gyro_problem is not None:
+                raise InputError(
+                    f"{gyro_problem}; the continuous estimator needs it right, as the log "
+                    f"cannot be calibrated from rests (still detection: {why})"
+                ) from None
             notes.append(
                 "poses='auto': calibrated from continuous motion, not from rests (still "
                 f"detection: {why}); the log has a gyroscope and time"
@@ -483,12 +564,14 @@ def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | 
         return poses_from_log(log, poses="still" if poses == "auto" else poses, **detection)
     except InputError as exc:
         text = str(exc)
-        if NO_STILL not in text or (poses == "auto" and why_not is None):
+        short = SHORT_LOG in text  # a log of a few rows (one per shot): a pose column?
+        if (NO_STILL not in text and not short) or (poses == "auto" and why_not is None):
             raise
         advice = pose_advice(log, **detection)
         if advice is None:
             raise
-        raise InputError(f"{text.split('; try ', 1)[0]}; {advice}") from None
+        head = text.split("; ", 1)[0] if short else text.split("; try ", 1)[0]
+        raise InputError(f"{head}; {advice}") from None
 
 
 def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str | None:

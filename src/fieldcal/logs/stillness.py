@@ -40,7 +40,10 @@ from numpy.typing import NDArray
 from ..errors import InputError
 from ..limits import power_of_two
 
-__all__ = ["Segment", "StillResult", "detect_still", "moving_variance", "scale_of"]
+#: The message's words for a log shorter than one detection window (a few shots, one a row).
+SHORT_LOG = "fewer than one detection window"
+
+__all__ = ["SHORT_LOG", "Segment", "StillResult", "detect_still", "moving_variance", "scale_of"]
 
 Array = NDArray[np.float64]
 
@@ -418,7 +421,7 @@ def detect_still(
         threshold = _real(threshold, "threshold", minimum=0.0, inclusive=False)
     if n < window:
         raise InputError(
-            f"the log has {n} samples, fewer than one detection window "
+            f"the log has {n} samples, {SHORT_LOG} "
             f"({max(window, length):.6g}); record longer or give a shorter window"
         )
     breaks = _bounds(n, _segments(segment, n))
