@@ -321,14 +321,14 @@ def run_log(
     poses: str | PoseSet = detect.poses if found is None else found
     accel_sign, mag_axes, gyro = fit.accel_sign, fit.mag_axes, fit.gyro
     rate = detect.rate
-    if isinstance(poses, str):
-        _check_choice("poses", poses, POSE_MODES)
+    if not isinstance(poses, PoseSet):
+        _check_choice("poses (--poses)", poses, POSE_MODES)
     if gyro is True and log.gyro is None:  # before the long work
         raise InputError(
             "the gyroscope cannot be calibrated: the log has no gyroscope columns; name them "
             "with --gyro-cols"
         )
-    _check_choice("accel_sign", accel_sign, ACCEL_SIGNS)
+    _check_choice("accel_sign (--accel-sign)", accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, mag_axes, accel_sign)
     log, gyro_scale, problem = _gyro_in_rad_s(log, fit.gyro_unit, rate, gyro, notes)
     if problem is not None and (rate is not None or poses == "continuous"):

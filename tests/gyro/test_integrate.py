@@ -51,7 +51,7 @@ def test_segment_turns_refuses_time_going_backwards_and_spans_outside(motion):
     t, w = motion
     back = t.copy()
     back[60] = back[57]  # two steps back: a reset, refused naming the flag that splits it
-    with pytest.raises(InputError, match="time goes backwards.*--split-on-reset"):
+    with pytest.raises(InputError, match=r"time goes backwards.*--split-on-reset"):
         segment_turns(back, w, [(50, 70)])
     jitter = t.copy()
     jitter[60] = (t[59] + t[58]) / 2  # half a step back: the row shares t[59], spread after

@@ -11,6 +11,7 @@ import click
 
 from .. import _files
 from ..errors import InputError
+from ..logs.sniff import is_calibration_json
 from ..output import exports
 from . import library
 from .group import (
@@ -96,6 +97,16 @@ def calibrate(
     finish(cal, summary_shown=not (as_json or quiet))
 
 
+def check_order(cal_json: str, log: str, command: str) -> None:
+    """Refuse ``CAL_JSON LOG`` given the other way round, naming the order (``apply`` and
+    ``report`` take the calibration first)."""
+    if is_calibration_json(log) and not is_calibration_json(cal_json):
+        raise InputError(
+            f"the arguments are swapped: {log} is the calibration JSON and {cal_json} the log; "
+            f"give the calibration first: fieldcal {command} {log} {cal_json} ..."
+        )
+
+
 # ----------------------------------------------------------------------------- apply
 @cli.command()
 @click.argument("cal_json", type=click.Path())
@@ -147,6 +158,7 @@ def apply(
     (the log's temperature column, or --temperature).
     """
     claim([output], {"calibration": cal_json, "log": log}, force)
+    check_order(cal_json, log, "apply")
     library.check_pyarrow(log, output)
     cal = read_cal(cal_json)
     with progress_line(quiet) as progress:
@@ -277,6 +289,7 @@ def report(
     if png_dir is not None:
         pngs = [Path(png_dir) / f"{name}.png" for name in library.FIGURES]
         claim(pngs, inputs, force, folders_made=True)
+    check_order(cal_json, log, "report")
     check_matplotlib()
     cal = read_cal(cal_json)
     with progress_line(quiet) as progress:

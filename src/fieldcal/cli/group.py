@@ -301,6 +301,12 @@ def read_cal(path: str) -> Calibration:
         raise InputError(
             f"{path}: not a text file; give the calibration JSON `fieldcal calibrate` wrote"
         ) from None
+    if not text.lstrip("\ufeff \t\r\n").startswith("{"):
+        first = one_line(text.lstrip().split("\n", 1)[0])[:60]
+        raise InputError(
+            f"{path}: is not a calibration JSON (its first line is {first!r}); give the JSON "
+            "`fieldcal calibrate` wrote"
+        )
     return library.Calibration.from_json(text)
 
 
