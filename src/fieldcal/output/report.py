@@ -63,6 +63,7 @@ from .._files import same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log, load_log
+from ..trust.accuracy import temperature_span
 from .motion_figures import CAPTIONS as MOTION_CAPTIONS
 from .motion_figures import TITLES as MOTION_TITLES
 from .motion_figures import is_continuous, motion_figures
@@ -637,6 +638,14 @@ def _uncertainty_html(cal: Calibration) -> str:
         ):
             if value is not None:
                 rows.append((label, f"{value * scale:.3g}{unit}"))
+        span = temperature_span(cal)
+        if span is not None:
+            rows.append(
+                (
+                    "predicted over the logged temperatures",
+                    f"{span[0]:.1f}–{span[1]:.1f} °C (the temperature terms' uncertainty included)",
+                )
+            )
     body = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows)
     return f"<h2>Uncertainty and predicted accuracy</h2><table>{body}</table>"
 

@@ -17,6 +17,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ..calibration import Calibration, SensorCalibration
+from ..trust.accuracy import temperature_span
 
 if TYPE_CHECKING:  # the report is only printed here: loading noise is the command's
     from ..noise import NoiseReport
@@ -145,9 +146,11 @@ def _print_gyro(console: Console, cal: Calibration) -> None:
             if p_value is None
             else (f" (p = {p_value:.2g}: {'drifts' if p_value < 0.01 else 'no significant drift'})")
         )
+        thermal = gyro.temperature is not None and gyro.temperature.order > 0
+        where = " beyond the temperature terms" if thermal else ""
         _say(
             console,
-            f"  bias drift across the log: {info['drift']:.3g} raw units/s "
+            f"  bias drift across the log{where}: {info['drift']:.3g} raw units/s "
             f"({3600 * info['drift']:.3g} per hour){verdict}",
         )
     residuals = [s["residual_deg"] for s in cal.gyro_segments if "residual_deg" in s]
@@ -174,7 +177,16 @@ def _accuracy_line(cal: Calibration) -> str | None:
         parts.append(f"|m| {100 * acc.mag_norm_rel:.3g} %")
     if not parts:
         return None
-    return "predicted accuracy after calibration (1σ, RMS over orientations): " + ", ".join(parts)
+    span = temperature_span(cal)
+    over = (
+        "orientations"
+        if span is None
+        else (
+            f"orientations and the logged temperatures {span[0]:.1f}–{span[1]:.1f} °C, the "
+            "temperature terms' uncertainty included"
+        )
+    )
+    return f"predicted accuracy after calibration (1σ, RMS over {over}): " + ", ".join(parts)
 
 
 def _certificate_line(cal: Calibration) -> str | None:
