@@ -120,14 +120,17 @@ def check_order(cal_json: str, log: str, command: str) -> None:
 @click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
 @click.option(
+    "--gyro-cols", help="Gyroscope columns x,y,z (default: recognised); written in rad/s."
+)
+@click.option(
     "--decimal", type=click.Choice([".", ","]), help="Decimal mark of a text log (default: seen)."
 )
 @click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one).")
 @click.option("--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic.")
 @click.option(
     "--temp-col",
-    help="Temperature column (deg C) for a calibration with temperature terms (default: "
-    "recognised).",
+    help="Temperature column (deg C) for a calibration with temperature terms (default: the "
+    "one the calibration was fitted with, else recognised).",
 )
 @click.option(
     "--temperature",
@@ -142,6 +145,7 @@ def apply(
     output: str,
     accel_cols: str | None,
     mag_cols: str | None,
+    gyro_cols: str | None,
     decimal: str | None,
     imu_topic: str | None,
     mag_topic: str | None,
@@ -152,10 +156,11 @@ def apply(
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
 
-    The output's suffix names its format; CSV to CSV is streamed in chunks, every input
-    line kept byte for byte. A ROS bag gives its table (t, ax.., gx.., mx..) with the
-    calibrated columns. A calibration with temperature terms uses each row's temperature
-    (the log's temperature column, or --temperature).
+    Each sensor the calibration holds and the log has: accelerometer, magnetometer and
+    gyroscope (gx_cal.. in rad/s). The output's suffix names its format; CSV to CSV is
+    streamed in chunks, every input line kept byte for byte. A ROS bag gives its table (t,
+    ax.., gx.., mx..) with the calibrated columns. A calibration with temperature terms uses
+    each row's temperature (the column it was fitted with, --temp-col, or --temperature).
     """
     claim([output], {"calibration": cal_json, "log": log}, force)
     check_order(cal_json, log, "apply")
@@ -170,6 +175,7 @@ def apply(
             output,
             accel_cols=accel_cols,
             mag_cols=mag_cols,
+            gyro_cols=gyro_cols,
             decimal=decimal,
             imu_topic=imu_topic,
             mag_topic=mag_topic,
