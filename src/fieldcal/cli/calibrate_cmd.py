@@ -4,6 +4,7 @@ and a calibration file to a calibrated log, a firmware export or the pictures.""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -189,6 +190,34 @@ def apply(
 
 
 # ----------------------------------------------------------------------------- export
+#: What to do with each export once written (``export`` says it after naming the file).
+NEXT_STEP = {
+    "c-header": "#include it in the firmware and correct each reading with "
+    "fieldcal_apply(M, B, raw, out) (docs/microcontroller.md)",
+    "c-library": "add fieldcal_cal.c and fieldcal_cal.h to the firmware's build and call "
+    "fieldcal_accel/fieldcal_mag/fieldcal_gyro(&FIELDCAL_FACTORY, raw, out) per reading "
+    "(docs/microcontroller.md)",
+    "matlab": "run it in MATLAB or Octave: it defines the gains, biases and an apply function",
+    "magneto": "paste the numbers where Magneto's output goes (its A⁻¹ and b)",
+    "json": "read it with fieldcal.Calibration.from_json, or any JSON reader (docs/json-schema.md)",
+    "ardupilot": "load it in Mission Planner (Config > Full Parameter List > Load from file) "
+    "or MAVProxy (param load FILE), then reboot (docs/ardupilot.md)",
+    "px4": "set CAL_*_ID in it to your sensors' device ids, load it in QGroundControl "
+    "(Vehicle Setup > Parameters > Tools > Load from file), then reboot (docs/px4.md)",
+    "mat": "load it with scipy.io.loadmat or MATLAB's load",
+    "kalibr": "give it to Kalibr as the IMU's yaml (--imu), with the readings corrected by "
+    "fieldcal apply",
+    "openvins": "give it to OpenVINS as kalibr_imu_chain.yaml, fed the columns fieldcal apply "
+    "writes (a*_cal, g*_cal)",
+}
+
+
+def _wrote(what: str, fmt: str) -> None:
+    """One line on stderr (stdout may carry the export itself): what was written, what next."""
+    step = NEXT_STEP.get(fmt)
+    click.echo(f"wrote {what} ({fmt})" + (f"; next: {step}" if step else ""), err=True)
+
+
 _SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values() if f.suffix)
 
 
@@ -220,8 +249,9 @@ _SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values() i
     "--allow-out-of-range",
     is_flag=True,
     help="ardupilot, px4: write a value outside the range the autopilot accepts, marked by a "
-    "comment, instead of refusing the export.",
+    "comment, instead of refusing the export (one warning line names them).",
 )
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and warnings.")
 @force_option
 def export(
     cal_json: str,
@@ -230,9 +260,11 @@ def export(
     sysid: int | None,
     compid: int | None,
     allow_out_of_range: bool,
+    quiet: bool,
     force: bool,
 ) -> None:
-    """Write the calibration for firmware or another tool, its convention stated in the text."""
+    """Write the calibration for firmware or another tool, its convention stated in the text;
+    say what was written and the next step (on stderr)."""
     options: dict[str, object] = {
         k: v for k, v in (("sysid", sysid), ("compid", compid)) if v is not None
     }
@@ -252,6 +284,8 @@ def export(
         Path(output).mkdir(parents=True, exist_ok=True)
         for name, data in files.items():
             _files.write_bytes(Path(output) / name, data)
+        if not quiet:
+            _wrote(", ".join(str(Path(output) / name) for name in files), fmt)
         return
     claim([output], {"calibration": cal_json}, force)
     if fmt is None:
@@ -263,12 +297,16 @@ def export(
         if not output:
             raise InputError(f"the {fmt} format is binary: give -o FILE{exports.get(fmt).suffix}")
         _files.write_bytes(output, data)
+        if not quiet:
+            _wrote(output, fmt)
         return
     text = exports.export(cal, fmt, **options)
     if output:
         _files.write_text(output, text if text.endswith("\n") else text + "\n")
     else:
         click.echo(text.rstrip("\n"))
+    if not quiet and (output or sys.stderr.isatty()):  # a pipe's reader wants the text alone
+        _wrote(output or "to stdout", fmt)
 
 
 # ----------------------------------------------------------------------------- report
