@@ -64,6 +64,7 @@ from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log, load_log
 from ..trust.accuracy import temperature_span
+from ..trust.wording import banner_headline, certificate_reading, status_shown
 from .motion_figures import CAPTIONS as MOTION_CAPTIONS
 from .motion_figures import TITLES as MOTION_TITLES
 from .motion_figures import is_continuous, motion_figures
@@ -499,12 +500,6 @@ _CSS = (
     ".caption{color:#444;font-size:90%}"
 )
 
-_HEADLINES = {
-    "pass": "PASS: consistent with its noise and within the accuracy targets",
-    "warn": "WARN: usable, but look at the reasons",
-    "fail": "FAIL: do not use this calibration",
-}
-
 
 def _banner_html(cal: Calibration) -> str:
     verdict = cal.verdict
@@ -515,7 +510,7 @@ def _banner_html(cal: Calibration) -> str:
         )
     reasons = "".join(f"<li>{_esc(r.text)}</li>" for r in verdict.reasons)
     body = f"<ul>{reasons}</ul>" if reasons else "<p>no reason for doubt was found</p>"
-    headline = _HEADLINES[verdict.level]
+    headline = banner_headline(cal)
     codes = f'<p class="codes">{_esc(verdict.summary)}</p>' if verdict.reasons else ""
     return f'<div class="verdict {_esc(verdict.level)}"><h2>{headline}</h2>{codes}{body}</div>'
 
@@ -538,9 +533,14 @@ def _summary_html(cal: Calibration, log: Log, poses: list[_Pose]) -> str:
         rows.append(("optimiser", _esc(cal.message)))
     d = cal.diagnostics
     if d is not None:
-        status = f", {_esc(d.status)}" if d.status else ""
+        shown = status_shown(cal)
+        status = f"; status: {_esc(shown)}" if shown else ""
         rows.append(
-            ("certificate", f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g}{status}")
+            (
+                "certificate",
+                f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g} "
+                f"({_esc(certificate_reading(cal))}){status}",
+            )
         )
     ref = cal.field_reference
     if ref is not None:

@@ -18,6 +18,7 @@ from rich.text import Text
 
 from ..calibration import Calibration, SensorCalibration
 from ..trust.accuracy import temperature_span
+from ..trust.wording import certificate_reading, status_shown
 
 if TYPE_CHECKING:  # the report is only printed here: loading noise is the command's
     from ..noise import NoiseReport
@@ -193,20 +194,11 @@ def _certificate_line(cal: Calibration) -> str | None:
     diag = cal.diagnostics
     if diag is None:
         return None
-    from_residuals = any(
-        s is not None and s.noise_source == "residuals" for s in (cal.accel, cal.mag)
-    )
-    if from_residuals:
-        reading = "not a test: the noise was estimated from these residuals"
-    elif not np.isfinite(diag.p_value):
-        reading = "no degrees of freedom left for a test"
-    elif diag.p_value > 0.01:
-        reading = "consistent with the noise"
-    else:
-        reading = "the model does not explain the data to within the noise"
+    status = status_shown(cal)
     return (
         f"fit certificate: J = {diag.statistic:.4g}, dof = {diag.dof}, "
-        f"p = {diag.p_value:.3g} ({reading})" + (f"; status: {diag.status}" if diag.status else "")
+        f"p = {diag.p_value:.3g} ({certificate_reading(cal)})"
+        + (f"; status: {status}" if status else "")
     )
 
 
