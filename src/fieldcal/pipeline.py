@@ -448,7 +448,8 @@ def _run_log(
         except InputError as exc:
             if poses != "auto" or why_not is not None:
                 raise
-            why = "its rests move" if MOVING_RESTS in str(exc) else str(exc)
+            # the finding only: its advice (hold still in more orientations...) is the rests'
+            why = "its rests move" if MOVING_RESTS in str(exc) else _finding(str(exc))
             if gyro_problem is not None:
                 raise InputError(
                     f"{gyro_problem}; the continuous estimator needs it right, as the log "
@@ -505,6 +506,13 @@ def _run_log(
     if gravity_sign:
         cal = fold_axes(cal, -np.eye(3), accel_sign, sensor="accel")
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
+
+
+def _finding(message: str) -> str:
+    """A refusal's finding without its advice (what follows the reason: the fix for rests)."""
+    for cut in (" (the 6N", ": hold", ": other settings", ": for a log", "; try ", "; or "):
+        message = message.split(cut, 1)[0]
+    return message
 
 
 def _input_notes(log: Log, mag_axes: str | None, accel_sign: str) -> tuple[list[str], Array | None]:
