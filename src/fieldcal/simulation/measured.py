@@ -17,20 +17,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Calibration
+from ..geometry.orientations import fibonacci_sphere
 
 __all__ = ["measured_accuracy"]
 
 Array = NDArray[np.float64]
 #: ``drift(sensor, temperatures)``: the true bias's change, (n, 3) raw units.
 Drift = Callable[[str, Array], Array]
-
-
-def _sphere(n: int) -> Array:
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(1.0 - z * z)
-    phi = np.pi * (1.0 + 5**0.5) * k
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
 def _heading(a: Array, m: Array) -> Array:
@@ -89,7 +82,7 @@ def measured_accuracy(
         return np.zeros((len(T), 3)) if drift is None else drift(sensor, T)
 
     out: dict[str, float] = {}
-    v = _sphere(orientations)
+    v = fibonacci_sphere(orientations)
     grid_v = np.tile(v, (len(temps), 1))
     grid_t = np.repeat(temps, len(v))
     for sensor, norm_key in (("accel", "accel_norm_rel"), ("mag", "mag_norm_rel")):

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, ParameterCovariance
+from ..geometry.orientations import fibonacci_sphere
 
 __all__ = ["over_span", "predict_accuracy", "temperature_span"]
 
@@ -35,16 +36,7 @@ _ORIENTATIONS = 128
 _HEADINGS = 36
 
 
-def _sphere(n: int) -> Array:
-    """``n`` unit vectors spread evenly on the sphere (Fibonacci lattice)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(1.0 - z * z)
-    phi = np.pi * (1.0 + 5**0.5) * k
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-_SPHERE = _sphere(_ORIENTATIONS)
+_SPHERE = fibonacci_sphere(_ORIENTATIONS)
 _SPHERE.setflags(write=False)
 
 
