@@ -68,8 +68,8 @@ def not_a_log(path: str | Path) -> str | None:
             return f"{path}: is {what}, not a CSV log; {fix}"
     if b"\x00" in raw:
         return (
-            f"{path}: is a binary file, not a text log; give a CSV with a header line, "
-            ".npz or .parquet"
+            f"{path}: not a text file (binary, no known format); give a CSV with a header "
+            "line, .npz or .parquet"
         )
     text = raw.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
     if is_calibration_json(path):
