@@ -189,7 +189,7 @@ def apply_to_file(
     if same_file(src, dst):
         raise InputError(f"{dst}: is the input log {src}; write the output to another file")
     check_pyarrow(src, dst)
-    sensors = [s for s in ("accel", "mag", "gyro") if getattr(cal, s) is not None]
+    sensors = [s for s in ("accel", "mag", "gyro") if getattr(cal, s, None) is not None]
     columns = {"accel": accel_cols, "mag": mag_cols, "gyro": gyro_cols}
     thermal = _Thermal(cal, sensors, temp_col, temperature)
     if is_bag(src):  # (a rosbag2 bag is a folder)

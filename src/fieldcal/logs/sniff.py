@@ -27,8 +27,10 @@ _MAGIC = (
 )
 #: A Markdown table's separator row (``|---|:--:|``) or a fenced code block.
 _MARKDOWN = re.compile(r"^\s*(\|?\s*:?-{3,}:?\s*\|[\s|:-]*|```.*)$")
-#: A heading line (``# Title``, ``## Setup``).
-_HEADING = re.compile(r"^#{1,6}\s+\S")
+#: A heading line (``# Title``, ``## Setup``) with no delimiter (``# t,ax`` is a header).
+_HEADING = re.compile(r"^#{1,6}\s+[^,;\t]+$")
+#: A line of prose: four or more words, no delimiter, not a comment.
+_PROSE = re.compile(r"^[^#,;\t|][^,;\t|]*(\s+\S+){3,}\s*$")
 #: A data line: numbers separated by a delimiter.
 _NUMBERS = re.compile(r"^\s*[-+.\d]+([eE][-+]?\d+)?(\s*[,;\t ]\s*[-+.\deE]+){2,}\s*$")
 #: Keys only a calibration file has together.
@@ -89,7 +91,9 @@ def not_a_log(path: str | Path) -> str | None:
     numbers = sum(bool(_NUMBERS.match(line)) for line in lines)
     marks = sum(bool(_MARKDOWN.match(line)) for line in lines)
     headings = sum(bool(_HEADING.match(line)) for line in lines)
-    if numbers < 3 and (marks or headings):
+    prose = sum(bool(_PROSE.match(line)) for line in lines)
+    # a CSV's "# units: g" comment is no heading: Markdown shows tables, fences or prose too
+    if numbers < 3 and (marks or (headings and prose)):
         return (
             f"{path}: looks like Markdown (headings, tables or code fences) with no rows of "
             "numbers, not a CSV log; give the log file (a header line, then one row of "
