@@ -24,7 +24,7 @@ from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .geometry.rotations import hat, rotation_angle_deg
 from .gyro.estimate import GyroFit, fit_gyro
-from .gyro.gyro_scale import gyro_factor, gyro_scale_problem
+from .gyro.gyro_scale import RATE_PREFIX, gyro_factor, gyro_scale_problem
 from .gyro.gyro_temperature import with_bias_temperature
 from .gyro.integrate import effective_time, segment_turns
 from .likelihood.cramer_rao import pose_rotation_factors
@@ -331,7 +331,9 @@ def run_log(
     _check_choice("accel_sign (--accel-sign)", accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, mag_axes, accel_sign)
     log, gyro_scale, problem = _gyro_in_rad_s(log, fit.gyro_unit, rate, gyro, notes)
-    if problem is not None and (rate is not None or poses == "continuous"):
+    # a rate that contradicts the log is refused on every path; a unit, which the poses'
+    # gyroscope fit absorbs into the gain, only where the continuous estimator needs rad/s
+    if problem is not None and (problem.startswith(RATE_PREFIX) or poses == "continuous"):
         raise InputError(problem)
     run = _run_log(log, settings, poses, P, notes, on_progress, problem)
     if gyro_scale == 1.0 or run.calibration.gyro is None:

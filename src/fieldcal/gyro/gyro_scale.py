@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 
-__all__ = ["DEG_PER_RAD", "GYRO_UNITS", "gyro_factor", "gyro_scale_problem", "turn_ratio"]
+__all__ = [
+    "DEG_PER_RAD",
+    "GYRO_UNITS",
+    "RATE_PREFIX",
+    "gyro_factor",
+    "gyro_scale_problem",
+    "turn_ratio",
+]
 
 Array = NDArray[np.float64]
 
@@ -27,6 +34,9 @@ Array = NDArray[np.float64]
 DEG_PER_RAD = 180.0 / math.pi
 #: ``--gyro-unit`` names and their rad/s per raw unit (a number is taken as that factor).
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "dps": math.pi / 180.0}
+#: How a problem that blames ``--rate`` starts (every path refuses it: a wrong rate would be
+#: absorbed into the gyroscope's gain and correct wrongly; a unit only the continuous path).
+RATE_PREFIX = "--rate "
 #: Ratios inside this band are the raw sensors' distortion, not a wrong unit or time base.
 _ACCEPTED = (1.0 / 3.0, 3.0)
 #: Stretches whose visible turn lies in this band (degrees) are compared: beyond the noise,
@@ -199,8 +209,8 @@ def gyro_scale_problem(
         likely = rate * ratio
         against = "the log's time column" if has_time else "the log"
         return (
-            f"--rate {rate:g} contradicts {against}: at that rate {what}; the samples come at "
-            f"about {likely:.3g} Hz: give --rate {likely:.3g}"
+            f"{RATE_PREFIX}{rate:g} contradicts {against}: at that rate {what}; the samples "
+            f"come at about {likely:.3g} Hz: give --rate {likely:.3g}"
             + (" or leave --rate out to use the time column" if has_time else "")
             + " (or, if the rate is right, the gyroscope's unit with --gyro-unit)"
         )
