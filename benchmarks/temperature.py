@@ -12,6 +12,11 @@ each session and sensor, over the span the poses saw:
 - *coverage*: the share of fitted coefficients whose 95 % interval (±1.96σ) holds the truth
   re-expanded about the fit's T_ref.
 - *null*: the same sessions with no drift: the share in which any term is selected.
+- *predicted / measured*: the predicted accuracy (tilt, heading, |a|, |m|: RMS over
+  orientations and the logged temperatures, the terms' uncertainty included) against the
+  errors the calibration makes on the simulated device over the same span
+  (``fieldcal.simulation.measured.measured_accuracy``), RMS over the sessions; 1 is exact,
+  the issue asks for 0.5-2.
 
     python benchmarks/temperature.py                 # 200 sessions each, writes the section
     python benchmarks/temperature.py --sessions 20 --no-docs
@@ -32,9 +37,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import pin_blas_threads, stamp, write_section
 
 import fieldcal
+from fieldcal.simulation.measured import measured_accuracy
 from fieldcal.simulation.warmup import simulate_warmup
+from fieldcal.trust.accuracy import temperature_span
 
 SENSORS = ("accel", "mag")
+ACCURACY = ("tilt_deg", "heading_deg", "accel_norm_rel", "mag_norm_rel")
 
 
 def _session(seed: int, drift: dict | None) -> dict:
@@ -45,6 +53,10 @@ def _session(seed: int, drift: dict | None) -> dict:
         warnings.simplefilter("ignore")
         cal = fieldcal.calibrate(w.accel, w.mag, temperature=w.temperature)
     out: dict = {"orders": dict(cal.options["temperature"]["orders"]), "span": span}
+    logged = temperature_span(cal)
+    if logged is not None and drift is None:
+        got = measured_accuracy(cal, w.session.truth, logged, w.truth.drift)
+        out["accuracy"] = [(getattr(cal.accuracy, k), got[k]) for k in ACCURACY]
     for s in SENSORS:
         model = cal.sensor(s).temperature
         grid = np.linspace(model.span[0], model.span[1], 64)
@@ -96,6 +108,17 @@ def run(n: int) -> str:
         key = ",".join(f"{s}:{r['orders'].get(s, 0)}" for s in SENSORS)
         orders[key] = orders.get(key, 0) + 1
     common = ", ".join(f"{k} ({v})" for k, v in sorted(orders.items(), key=lambda kv: -kv[1])[:4])
+    pairs = np.array([r["accuracy"] for r in warm if "accuracy" in r])  # (n, 4, 2)
+    ratio = np.sqrt(np.mean(pairs[:, :, 0] ** 2, 0) / np.mean(pairs[:, :, 1] ** 2, 0))
+    median_ratio = np.median(pairs[:, :, 0] / pairs[:, :, 1], axis=0)
+    lines += [
+        "",
+        "| predicted / measured | tilt | heading | \\|a\\| | \\|m\\| |",
+        "|---|---|---|---|---|",
+        "| RMS over sessions | " + " | ".join(f"{r:.3f}" for r in ratio) + " |",
+        "| median per session | " + " | ".join(f"{r:.3f}" for r in median_ratio) + " |",
+        f"| sessions | {len(pairs)} (with terms) | | | |",
+    ]
     text = (
         f"{n} warm-up sessions (24 poses, span U[10, 30] K, linear + quadratic drift) and {n} "
         f"without drift; {seconds:.0f} s in all.\n\n"

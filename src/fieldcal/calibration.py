@@ -313,7 +313,7 @@ class Calibration(ArrayDataclass):
             object.__setattr__(self, "units", {**self.units, **units})
 
     def __repr__(self) -> str:
-        sensors = "+".join(s for s in SENSORS if getattr(self, s) is not None) or "none"
+        sensors = "+".join(s for s in (*SENSORS, GYRO) if getattr(self, s) is not None) or "none"
         parts = [f"method={self.method!r}"]
         if self.verdict is not None:
             parts.append(f"verdict={self.verdict.level!r}")

@@ -8,13 +8,23 @@ must tell one mistake from another reads :attr:`InputError.code`, never the mess
 
 from __future__ import annotations
 
-__all__ = ["MOVING_RESTS", "NOT_A_SENSOR", "NO_STILL", "InputError", "MovingRestsWarning"]
+__all__ = [
+    "MOVING_RESTS",
+    "NOT_A_SENSOR",
+    "NO_STILL",
+    "SHORT_LOG",
+    "InputError",
+    "MovingRestsWarning",
+]
 
 #: :attr:`InputError.code` of still detection that found no rest.
 NO_STILL = "no_still"
 #: :attr:`InputError.code` of still detection whose rests move (``poses="auto"`` then goes on to
 #: the continuous motion).
 MOVING_RESTS = "moving_rests"
+#: :attr:`InputError.code` of a log shorter than one still-detection window (a log of shots, one
+#: row per pose: the pipeline then asks for its pose column).
+SHORT_LOG = "short_log"
 #: :attr:`InputError.code` of a per-sensor option that names something other than a sensor.
 NOT_A_SENSOR = "not_a_sensor"
 

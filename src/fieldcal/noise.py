@@ -535,8 +535,8 @@ def imu_yaml(
     if fmt == "openvins":
         lines.append(f'{indent}model: "kalibr"')
         lines.append(
-            f"{indent}# intrinsics: identity, as the readings are corrected before OpenVINS "
-            "(fieldcal apply)"
+            f"{indent}# intrinsics: identity: give OpenVINS the corrected columns `fieldcal apply` "
+            "writes (a*_cal, and g*_cal in rad/s)"
         )
         for name, diagonal in (
             ("Tw", 1.0),

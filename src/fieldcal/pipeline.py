@@ -24,11 +24,12 @@ from .errors import MOVING_RESTS, NO_STILL, InputError, MovingRestsWarning
 from .findings import TemperatureIgnored
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .gyro.integrate import effective_time
+from .gyro.scale import gyro_factor, gyro_scale_problem
 from .logs import Log, PoseSet, poses_from_log, turns_slowly
 from .logs.inputs import read_log
 from .logs.log_temperature import pose_temperature_samples
-from .logs.pose_finding import POSE_SOURCES
-from .logs.pose_hints import pose_advice
+from .logs.pose_finding import POSE_SOURCES, SHORT_LOG
+from .logs.pose_hints import SEPARATE_READINGS, pose_advice
 from .methods import estimator
 from .methods import get as get_method
 from .reference import FieldReference
@@ -92,6 +93,9 @@ def _check_poses(
         advice = f"hold the device still in {need - n} or more further orientations"
         if hints is None and poses.source == "still" and turns_slowly(log, rate=rate):
             advice = "the log turns slowly without rests: use --poses windows (poses='windows')"
+        separate = poses.source == "still" and log.time is None and rate is None
+        if separate and log.gyro is None and "--poses samples" not in (hints or ""):
+            advice = f"{SEPARATE_READINGS}; or {advice}"  # Magneto-style: a reading now and then
         why = " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
         raise InputError(
             f"{n} pose(s) found; the {method} method needs at least {need}"
@@ -117,7 +121,9 @@ def _check_poses(
         )
 
 
-def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Calibration:
+def fold_axes(
+    cal: Calibration, P: Array, spec: str, sensor: str = "mag", option: str | None = None
+) -> Calibration:
     """Express a calibration fitted on ``P @ raw`` in terms of the raw columns.
 
     ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
@@ -160,7 +166,8 @@ def fold_axes(cal: Calibration, P: Array, spec: str, sensor: str = "mag") -> Cal
     poses = tuple(
         {**row, key: list(Pt @ np.asarray(row[key]))} if key in row else row for row in cal.poses
     )
-    option = "mag_axes" if sensor == "mag" else "accel_sign"
+    if option is None:
+        option = "mag_axes" if sensor == "mag" else "accel_sign"
     return dataclasses.replace(
         cal,
         **{sensor: new},
@@ -282,6 +289,8 @@ class _Job:
     reference: FieldReference | None
     magnitudes: dict[str, float | None]
     targets: Targets | None
+    gyro_scale: float = 1.0
+    gyro_problem: str | None = None
 
     @property
     def may_fall_back(self) -> bool:
@@ -319,7 +328,7 @@ def run_log(
     -------
     LogCalibration
     """
-    job = _prepare(log, settings, found)
+    job, log = _prepare(log, settings, found)
     notes = list(job.notes)
     if job.mode == "continuous":
         return _run_continuous(log, job, notes, on_progress)
@@ -328,7 +337,13 @@ def run_log(
     except InputError as exc:
         if not job.may_fall_back:
             raise
-        why = "its rests move" if exc.code == MOVING_RESTS else str(exc)
+        # the finding only: its advice (hold still in more orientations...) is the rests'
+        why = "its rests move" if exc.code == MOVING_RESTS else _finding(str(exc))
+        if job.gyro_problem is not None:
+            raise InputError(
+                f"{job.gyro_problem}; the continuous estimator needs it right, as the log "
+                f"cannot be calibrated from rests (still detection: {why})"
+            ) from None
         notes.append(
             "poses='auto': calibrated from continuous motion, not from rests (still "
             f"detection: {why}); the log has a gyroscope and time"
@@ -337,23 +352,27 @@ def run_log(
     return _run_poses(log, job, poses, detection, notes, on_progress)
 
 
-def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
+def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> tuple[_Job, Log]:
     """Every setting a log's calibration needs checked once, before the long work, and the
-    mode chosen: the still detector's options given with ``poses="auto"`` ask for rests."""
+    mode chosen: the still detector's options given with ``poses="auto"`` ask for rests. The
+    log comes back with its gyroscope in rad/s (``--gyro-unit``)."""
     settings, located = _located(log, settings)
     detect, fit = settings.detect, settings.fit
     if found is None and isinstance(detect.poses, PoseSet):  # poses= given found poses
         found = detect.poses
     mode = "given" if found is not None else detect.poses
     if found is None:
-        _check_choice("poses", mode, POSE_MODES)
+        _check_choice("poses (--poses)", mode, POSE_MODES)
     if fit.gyro is True and log.gyro is None:
         raise InputError(
             "the gyroscope cannot be calibrated: the log has no gyroscope columns; name them "
             "with --gyro-cols"
         )
-    _check_choice("accel_sign", fit.accel_sign, ACCEL_SIGNS)
+    _check_choice("accel_sign (--accel-sign)", fit.accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, fit.mag_axes, fit.accel_sign)
+    log, gyro_scale, problem = _gyro_in_rad_s(log, fit.gyro_unit, detect.rate, fit.gyro, notes)
+    if problem is not None and (detect.rate is not None or mode == "continuous"):
+        raise InputError(problem)
     notes = [*located, *notes]
     tuned = [name for name in _STILL_OPTIONS if getattr(detect, name) is not None]
     if mode == "auto" and tuned:
@@ -368,7 +387,41 @@ def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> _Job:
         raise InputError(f"poses='continuous' (--poses continuous) needs {why_not}")
     reference, magnitudes = field_settings(fit, settings.trust)
     targets = targets_for(settings.targets, settings.trust)
-    return _Job(settings, found, mode, why_not, tuple(notes), P, reference, magnitudes, targets)
+    job = _Job(settings, found, mode, why_not, tuple(notes), P, reference, magnitudes, targets)
+    return dataclasses.replace(job, gyro_scale=gyro_scale, gyro_problem=problem), log
+
+
+def _gyro_in_rad_s(
+    log: Log, unit: str | None, rate: float | None, gyro: bool | None, notes: list[str]
+) -> tuple[Log, float, str | None]:
+    """The log with its gyroscope in rad/s (``--gyro-unit``), the factor applied, and what
+    the gyroscope's integrated turn against the other sensors' says is wrong (a unit or a rate
+    that contradicts the log; :func:`~fieldcal.gyro.scale.gyro_scale_problem`)."""
+    factor = gyro_factor(unit)
+    if log.gyro is None:
+        return log, factor, None
+    readings: Array = log.gyro * factor
+    if factor != 1.0:
+        log = dataclasses.replace(log, gyro=readings)
+        notes.append(
+            f"gyroscope read in {unit} (--gyro-unit), fitted in rad/s and folded back into its "
+            "gain: the result applies to the raw columns as logged"
+        )
+    if gyro is False or log.accel is None or (log.time is None and not rate):
+        return log, factor, None
+    time = np.arange(log.n) / rate if rate else effective_time(log.time)  # type: ignore[arg-type]
+    has_time = log.time is not None
+    problem = gyro_scale_problem(
+        time, log.accel, log.mag, readings, rate=rate, has_time=has_time, unit=unit
+    )
+    return log, factor, problem
+
+
+def _finding(message: str) -> str:
+    """A refusal's finding without its advice (what follows the reason: the fix for rests)."""
+    for cut in (" (the 6N", ": hold", ": other settings", ": for a log", "; try ", "; or "):
+        message = message.split(cut, 1)[0]
+    return message
 
 
 def _located(log: Log, settings: LogSettings) -> tuple[LogSettings, list[str]]:
@@ -407,9 +460,19 @@ def _poses(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         poses = _find_poses(log, job.mode, detection, job.why_not)
-    for w in caught:
-        if job.may_fall_back and issubclass(w.category, MovingRestsWarning):
-            raise InputError(str(w.message), code=MOVING_RESTS)
+    moving = [w for w in caught if issubclass(w.category, MovingRestsWarning)]
+    if moving and job.may_fall_back:
+        raise InputError(str(moving[0].message), code=MOVING_RESTS)
+    timed = log.time is not None or job.settings.detect.rate is not None  # else samples
+    if moving and job.mode == "auto" and log.gyro is None and timed:
+        # a hand-waved log: its motion can calibrate only with a gyroscope beside it
+        raise InputError(
+            f"{str(moving[0].message).split('; hold', 1)[0]}; a log waved by hand without "
+            "rests is calibrated from its motion only with a gyroscope and time, and "
+            "this log has no gyroscope columns (name them with --gyro-cols); without "
+            "one, record rests (hold still in 8 or more orientations, e.g. on the faces "
+            "and edges of a box) or turn slowly and use --poses windows"
+        )
     for w in caught:  # the detector's own warnings, passed on
         warnings.warn(w.message, w.category, stacklevel=3)
     if job.mode == "auto":
@@ -469,7 +532,7 @@ def _run_poses(
             notes=notes,
             on_progress=on_progress,
         )
-    cal = _late(_fold_back(cal, job), log, notes)
+    cal = _in_logged_units(_late(_fold_back(cal, job), log, notes), job)
     return LogCalibration(_with_pose_rows(cal, found, log), found, tuple(notes))
 
 
@@ -502,6 +565,15 @@ def _fold_back(cal: Calibration, job: _Job) -> Calibration:
     return cal
 
 
+def _in_logged_units(cal: Calibration, job: _Job) -> Calibration:
+    """The gyroscope's gain in the unit it was logged in (``--gyro-unit``), after the rules
+    judged it in rad/s: ``raw = gain·ω + bias`` in that unit is ``(gain, bias) / factor``."""
+    if job.gyro_scale == 1.0 or cal.gyro is None:
+        return cal
+    unit = str(job.settings.fit.gyro_unit)
+    return fold_axes(cal, np.eye(3) / job.gyro_scale, unit, "gyro", "gyro_unit")
+
+
 def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | None) -> PoseSet:
     """:func:`poses_from_log`; when still detection finds no rest, the error says which other
     settings find how many poses (not when ``poses='auto'`` goes on to continuous motion:
@@ -509,12 +581,14 @@ def _find_poses(log: Log, poses: str, detection: dict[str, Any], why_not: str | 
     try:
         return poses_from_log(log, poses="still" if poses == "auto" else poses, **detection)
     except InputError as exc:
-        if exc.code != NO_STILL or (poses == "auto" and why_not is None):
+        if exc.code not in (NO_STILL, SHORT_LOG) or (poses == "auto" and why_not is None):
             raise
         advice = pose_advice(log, **detection)
         if advice is None:
             raise
-        raise InputError(f"{str(exc).split('; try ', 1)[0]}; {advice}", code=NO_STILL) from None
+        text = str(exc)  # its finding, with the advice for this log in place of the generic
+        head = text.split("; ", 1)[0] if exc.code == SHORT_LOG else text.split("; try ", 1)[0]
+        raise InputError(f"{head}; {advice}", code=exc.code) from None
 
 
 def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str | None:
@@ -596,7 +670,7 @@ def _run_continuous(
         targets=job.targets,
         magnitudes=job.magnitudes,
     )
-    cal = _late(_fold_back(cal, job), log, notes)
+    cal = _in_logged_units(_late(_fold_back(cal, job), log, notes), job)
     traj = cal.options["trajectory"]
     notes.append(
         f"continuous motion: {traj['duration_s']:.4g} s, {traj['epochs']} epochs, "

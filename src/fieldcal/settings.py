@@ -620,6 +620,14 @@ class FitSettings:
             valid="switch",
         ),
     )
+    gyro_unit: str | None = field(
+        default=None,
+        metadata=meta(
+            "--gyro-unit",
+            "The gyroscope's raw unit: rad/s (default), deg/s, or a number (rad/s per raw "
+            "unit); folded back into its gain, so the result applies to the columns as logged.",
+        ),
+    )
     mag_mirrored: bool = field(
         default=False,
         metadata=meta(

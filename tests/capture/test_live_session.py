@@ -278,8 +278,13 @@ def test_an_unplugged_board_keeps_every_line(tmp_path):
         _wait_for(lines, said, lambda seen: any(x.startswith("reading ") for x in seen))
         device.start()
         code, stderr = _finish(process)
-    assert code == 2 and stderr.startswith("Error: ") and stderr.count("\n") == 1, stderr
-    assert "log.csv" in stderr  # what was kept is named
+    # five poses and the motion between: calibrate's mode on log.csv (poses='auto' takes the
+    # motion when the rests are too few), or its one-line refusal naming what was kept
+    if code == 2:
+        assert stderr.startswith("Error: ") and stderr.count("\n") == 1, stderr
+        assert "log.csv" in stderr
+    else:
+        assert code in (0, 3) and any("log.csv" in x for x in lines), (code, stderr)
     assert any(x.startswith("done: disconnected") for x in lines)
     recorded = [x for x in (out / "log.csv").read_text().splitlines() if not x.startswith("#")]
     written = device.lines()

@@ -34,3 +34,22 @@ def test_a_short_warmup_shows_its_span_and_asks_for_a_warmer_pose(tmp_path):
     assert "temperature: poses at" in text and "need 5 K" in text
     notes = [e.text for e in events if e.kind == "note"]
     assert any(n.startswith("repeat a pose when the board is warmer") for n in notes)
+
+
+def test_a_continuous_capture_shows_its_motion_not_an_empty_poses_table(tmp_path):
+    """``--poses continuous``: the view's table is the motion covered (issue 34), and no
+    line of it asks for still poses."""
+    from fieldcal.pipeline import LogSettings
+    from fieldcal.simulation.handwave import simulate_handwave
+
+    path = tmp_path / "waved.csv"
+    simulate_handwave(seed=6, seconds=20.0).write_csv(str(path))
+    console = Console(file=io.StringIO(), width=160, record=True)
+    view = LiveView(console, "waved.csv")
+    options = CaptureOptions(settings=LogSettings.of(poses="continuous"))
+    session = CaptureSession(options, tmp_path / "cap", view.event)
+    run_capture(open_source(path=str(path)), session)
+    console.print(view.render(session))
+    text = " ".join(console.export_text().split())
+    assert "motion (no still poses)" in text and "poses (0)" not in text
+    assert "record more poses, still" not in text

@@ -50,9 +50,13 @@ def test_spans_of_one_row_anywhere_are_the_identity(motion, spans):
 def test_segment_turns_refuses_time_going_backwards_and_spans_outside(motion):
     t, w = motion
     back = t.copy()
-    back[60] = back[58]
-    with pytest.raises(InputError, match="time goes backwards"):
+    back[60] = back[57]  # two steps back: a reset, refused naming the flag that splits it
+    with pytest.raises(InputError, match=r"time goes backwards.*--split-on-reset"):
         segment_turns(back, w, [(50, 70)])
+    jitter = t.copy()
+    jitter[60] = (t[59] + t[58]) / 2  # half a step back: the row shares t[59], spread after
+    want = segment_turns(t, w, [(50, 70)])
+    np.testing.assert_allclose(segment_turns(jitter, w, [(50, 70)]), want, atol=0.02)
     segment_turns(back, w, [(0, 40), (61, 80)])  # only within a span does it matter
     with pytest.raises(InputError, match="spans must be"):
         segment_turns(t, w, [(5, 3)])

@@ -84,7 +84,7 @@ def test_continuous_needs_a_gyroscope_and_time(tmp_path):
     np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="")
     with pytest.raises(InputError, match="gyroscope"):
         run_log(read_log(path), LogSettings.of(poses="continuous"))
-    with pytest.raises(InputError, match="poses must be one of"):
+    with pytest.raises(InputError, match=r"poses \(--poses\) must be one of"):
         run_log(read_log(path), LogSettings.of(poses="tumbling"))
 
 

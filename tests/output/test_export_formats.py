@@ -12,6 +12,7 @@ import dataclasses
 import io
 import json
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -430,6 +431,8 @@ def test_ardupilot_refuses_the_issue_example_and_writes_it_marked_when_allowed(c
         ("ardupilot", {"mag_scale": 8.0}, "COMPASS_DIA_X"),  # 0.2 < dia < 5
         ("px4", {"mag_bias": 1.5}, "CAL_MAG0_XOFF"),  # MAG_MAX_OFFSET_LEN 1.3 G
         ("px4", {"accel_scale": -1.0}, "CAL_ACC0_XSCALE"),  # a positive scale
+        ("px4", {"accel_bias": 1e30}, "CAL_ACC0_XOFF"),  # within a ±16 g sensor's range
+        ("px4", {"mag_scale": 8.0}, "CAL_MAG0_XSCALE"),  # plausibility, as COMPASS_DIA
     ],
 )
 def test_autopilot_ranges_refuse_in_one_line(cal, target, change, name):
@@ -443,7 +446,8 @@ def test_autopilot_ranges_refuse_in_one_line(cal, target, change, name):
             b[0] = change["mag_bias"] * (1.0 if target == "ardupilot" else -1.0)
         mag = dataclasses.replace(mag, bias=b)
     if "accel_bias" in change:
-        accel = dataclasses.replace(accel, bias=np.asarray(accel.bias) * 0 + [4.0, 0.0, 0.0])
+        size = 4.0 if target == "ardupilot" else change["accel_bias"]
+        accel = dataclasses.replace(accel, bias=np.asarray(accel.bias) * 0 + [size, 0.0, 0.0])
     if "mag_scale" in change:
         gain = np.asarray(mag.gain).copy()
         gain[0] /= change["mag_scale"]
@@ -462,8 +466,31 @@ def test_autopilot_ranges_refuse_in_one_line(cal, target, change, name):
     message = str(info.value)
     assert name in message and ("outside" in message or "exceeds" in message), message
     assert "--allow-out-of-range" in message and "\n" not in message
-    text = export(bad, target, allow_out_of_range=True)
+    with pytest.warns(UserWarning, match=f"outside the range .*{name}"):
+        text = export(bad, target, allow_out_of_range=True)
     assert "# OUT OF RANGE" in text
+
+
+@pytest.mark.parametrize("scale", [8.6, 1.0 / G, 12.2])
+def test_px4_refuses_scales_that_ardupilot_refuses_naming_the_raw_units(cal, scale):
+    """The issue's CAL_ACC0_XSCALE 8.6, 9.98 (a log in g) and 12.2: refused as ArduPilot
+    refuses INS_ACCSCAL, naming the units PX4's drivers deliver; allowed, one warning line
+    names the values written."""
+    device = _device(cal, "px4")
+    off = device.with_raw_scale({"accel": scale if scale < 1 else 1.0 / scale})
+    for target in ("ardupilot", "px4"):
+        dev = _device(cal, target).with_raw_scale({"accel": scale if scale < 1 else 1 / scale})
+        with pytest.raises(InputError, match="outside the range") as info:
+            export(dev, target)
+        assert "m/s²" in str(info.value) and "\n" not in str(info.value)
+    with pytest.warns(UserWarning) as caught:
+        text = export(off, "px4", allow_out_of_range=True)
+    (warning,) = caught
+    assert re.search(r"CAL_ACC0_XSCALE = \d+\.\d+", str(warning.message))
+    assert text.count("# OUT OF RANGE") == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # inside the ranges: no warning at all
+        assert "all inside" in export(device, "px4")
 
 
 def test_ardupilot_advice_does_not_contradict_a_folded_axis_map(cal):

@@ -92,8 +92,15 @@ def _px4_thermal_offset(p, letter, temperature):
     return (x[0] + x[1] * d + x[2] * (d * d) + x[3] * (d * d * d)).astype(float)
 
 
+def _px4(cal):
+    """The PX4 file of the fixture, whose raw units are not PX4's (accelerometer scales near
+    18): written marked, with the one-line warning that names the values."""
+    with pytest.warns(UserWarning, match=r"outside the range PX4 accepts.*CAL_ACC0_XSCALE = "):
+        return export(cal, "px4", allow_out_of_range=True)
+
+
 def test_px4_tc_parameters_are_pxs_names_and_switches(cal):
-    p = _parse_qgc(export(cal, "px4"))
+    p = _parse_qgc(_px4(cal))
     for letter in "AMG":
         assert p[f"TC_{letter}_ENABLE"] == 1
         names = [f"TC_{letter}0_X{k}_{i}" for k in range(4) for i in range(3)]
@@ -109,7 +116,7 @@ def test_px4_subtracts_the_bias_fieldcal_has_at_each_temperature(cal, sensor, le
     """PX4's driver library subtracts the thermal offset and CAL_*_OFF from the raw reading
     (Accelerometer::Correct: ``data - _thermal_offset - _offset``); what remains is fieldcal's
     ``raw − bias(T) = gain @ cal.correct_*(raw, temperature=T)``."""
-    p = _parse_qgc(export(cal, "px4"))
+    p = _parse_qgc(_px4(cal))
     raw, T = _readings(cal, sensor)
     offset_names = {"accel": "CAL_ACC0_{}OFF", "mag": "CAL_MAG0_{}OFF"}
     if sensor in offset_names:
@@ -130,7 +137,7 @@ def test_px4_subtracts_the_bias_fieldcal_has_at_each_temperature(cal, sensor, le
 def test_px4_compass_with_temperature_is_fieldcals_rotated(cal):
     """The whole compass chain (thermal offset, CAL_MAG0_OFF, the symmetric scale) gives
     fieldcal's field in gauss, rotated by the stated misalignment, at every temperature."""
-    text = export(cal, "px4")
+    text = _px4(cal)
     p = _parse_qgc(text)
     raw, T = _readings(cal, "mag", n=200)
     off = np.array([p[f"CAL_MAG0_{a}OFF"] for a in "XYZ"])
@@ -164,7 +171,7 @@ def test_exports_without_temperature_terms_are_unchanged():
     assert refused.accel.temperature.refused and refused.accel.temperature.order == 0
     plain = _without_terms(refused)
     for name, fmt in FORMATS.items():
-        if name in ("kalibr", "openvins", "ardupilot", "json"):
+        if name in ("kalibr", "openvins", "ardupilot", "px4", "json"):
             continue  # need a gyroscope and a rate, or raw units of their own; the document
         if fmt.files is not None:
             assert export_files(refused, name) == export_files(plain, name), name
@@ -172,6 +179,9 @@ def test_exports_without_temperature_terms_are_unchanged():
             a, b = export_bytes(refused, name), export_bytes(plain, name)
             header = 128 if name == "mat" else 0
             assert a[header:] == b[header:], name
+    with pytest.warns(UserWarning, match="outside the range PX4 accepts"):
+        a, b = (export(c, "px4", allow_out_of_range=True) for c in (refused, plain))
+    assert a == b
     # and the document says what it is: the JSON keeps the (refused) model
     assert '"refused": true' in export(refused, "json")
 

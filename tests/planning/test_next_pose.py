@@ -404,7 +404,7 @@ def test_samples_per_pose_come_from_the_calibration_or_must_be_given():
     s = fieldcal.simulate("paper", seed=1)
     cal = fieldcal.calibrate(s.accel, s.mag)
     bare = dataclasses.replace(cal, poses=())
-    with pytest.raises(InputError, match="pass samples="):
+    with pytest.raises(InputError, match="give the samples each pose will average"):
         plan_poses(bare)
     median = int(np.median([p["accel_samples"] for p in cal.poses]))
     assert plan_poses(bare, samples=median)[0].words == plan_poses(cal)[0].words

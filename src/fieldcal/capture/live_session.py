@@ -607,14 +607,10 @@ class CaptureSession:
         )
 
     def _final_settings(self) -> LogSettings:
-        """The capture's settings with still detection on every sample: the offline path
-        (``--poses continuous``: the continuous estimator on every sample)."""
-        settings = self.options.settings
-        if self.continuous:
-            return settings
-        return dataclasses.replace(
-            settings, detect=dataclasses.replace(settings.detect, poses="still")
-        )
+        """The capture's settings as given, on every sample: ``fieldcal calibrate``'s path on
+        the recorded log, so both choose the same mode (``--poses auto``: rests when the log
+        has them, else the continuous motion) and give the same result."""
+        return self.options.settings
 
     def _report(self, cal: Calibration) -> Path:
         path = self.folder / "report.html"

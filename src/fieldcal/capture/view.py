@@ -136,7 +136,8 @@ class LiveView:
                 title="coverage (direction of gravity in the body frame)",
             )
         )
-        parts.append(self._poses(session))
+        # a continuous capture has no poses: what its motion covered instead of an empty table
+        parts.append(self._motion(session) if session.continuous else self._poses(session))
         parts.append(self._calibration(session))
         if session.next_pose is not None:
             body = Text(session.next_pose.words, style="bold")
@@ -212,6 +213,21 @@ class LiveView:
                 else Text(f"rejected: {mark.rejected}", style="red")
             )
             table.add_row(Text(str(mark.index + 1)), Text(seconds), Text(mark.words), status)
+        return table
+
+    def _motion(self, session: CaptureSession) -> Table:
+        """``--poses continuous``: the motion so far, in place of the poses table."""
+        table = Table(title="motion (no still poses)", expand=False)
+        for name in ("seconds", "gravity directions", "turned about x, y, z"):
+            table.add_column(name)
+        motion = session.motion
+        if motion is not None:
+            turned = ", ".join(f"{float(v):.0f}°" for v in motion["turned_deg"].values())
+            table.add_row(
+                Text(f"{motion['seconds']:.0f}"),
+                Text(f"{100 * motion['gravity_coverage']:.0f} %"),
+                Text(turned),
+            )
         return table
 
     def _calibration(self, session: CaptureSession) -> Panel:

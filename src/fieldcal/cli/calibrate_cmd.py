@@ -4,12 +4,14 @@ and a calibration file to a calibrated log, a firmware export or the pictures.""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import click
 
 from .. import _files
 from ..errors import InputError
+from ..logs.sniff import is_calibration_json
 from ..output import exports
 from . import library
 from .group import (
@@ -95,6 +97,16 @@ def calibrate(
     finish(cal, summary_shown=not (as_json or quiet))
 
 
+def check_order(cal_json: str, log: str, command: str) -> None:
+    """Refuse ``CAL_JSON LOG`` given the other way round, naming the order (``apply`` and
+    ``report`` take the calibration first)."""
+    if is_calibration_json(log) and not is_calibration_json(cal_json):
+        raise InputError(
+            f"the arguments are swapped: {log} is the calibration JSON and {cal_json} the log; "
+            f"give the calibration first: fieldcal {command} {log} {cal_json} ..."
+        )
+
+
 # ----------------------------------------------------------------------------- apply
 @cli.command()
 @click.argument("cal_json", type=click.Path())
@@ -108,14 +120,17 @@ def calibrate(
 @click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
 @click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
 @click.option(
+    "--gyro-cols", help="Gyroscope columns x,y,z (default: recognised); written in rad/s."
+)
+@click.option(
     "--decimal", type=click.Choice([".", ","]), help="Decimal mark of a text log (default: seen)."
 )
 @click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one).")
 @click.option("--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic.")
 @click.option(
     "--temp-col",
-    help="Temperature column (deg C) for a calibration with temperature terms (default: "
-    "recognised).",
+    help="Temperature column (deg C) for a calibration with temperature terms (default: the "
+    "one the calibration was fitted with, else recognised).",
 )
 @click.option(
     "--temperature",
@@ -132,6 +147,7 @@ def apply(
     output: str,
     accel_cols: str | None,
     mag_cols: str | None,
+    gyro_cols: str | None,
     decimal: str | None,
     imu_topic: str | None,
     mag_topic: str | None,
@@ -144,13 +160,16 @@ def apply(
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
 
-    The output's suffix names its format; CSV to CSV is streamed in chunks, every input
-    line kept byte for byte. A ROS bag gives its table (t, ax.., gx.., mx..) with the
-    calibrated columns. A calibration with temperature terms uses each row's temperature
-    (the log's temperature column, or --temperature); one with an interference term each
-    row's battery current or throttle (recognised, or --current-col/--throttle-col).
+    Each sensor the calibration holds and the log has: accelerometer, magnetometer and
+    gyroscope (gx_cal.. in rad/s). The output's suffix names its format; CSV to CSV is
+    streamed in chunks, every input line kept byte for byte. A ROS bag gives its table (t,
+    ax.., gx.., mx..) with the calibrated columns. A calibration with temperature terms uses
+    each row's temperature (the column it was fitted with, --temp-col, or --temperature); one
+    with an interference term each row's battery current or throttle (recognised, or
+    --current-col/--throttle-col).
     """
     claim([output], {"calibration": cal_json, "log": log}, force)
+    check_order(cal_json, log, "apply")
     library.check_pyarrow(log, output)
     cal = read_cal(cal_json)
     with progress_line(quiet) as progress:
@@ -162,6 +181,7 @@ def apply(
             output,
             accel_cols=accel_cols,
             mag_cols=mag_cols,
+            gyro_cols=gyro_cols,
             decimal=decimal,
             imu_topic=imu_topic,
             mag_topic=mag_topic,
@@ -177,6 +197,34 @@ def apply(
 
 
 # ----------------------------------------------------------------------------- export
+#: What to do with each export once written (``export`` says it after naming the file).
+NEXT_STEP = {
+    "c-header": "#include it in the firmware and correct each reading with "
+    "fieldcal_apply(M, B, raw, out) (docs/microcontroller.md)",
+    "c-library": "add fieldcal_cal.c and fieldcal_cal.h to the firmware's build and call "
+    "fieldcal_accel/fieldcal_mag/fieldcal_gyro(&FIELDCAL_FACTORY, raw, out) per reading "
+    "(docs/microcontroller.md)",
+    "matlab": "run it in MATLAB or Octave: it defines the gains, biases and an apply function",
+    "magneto": "paste the numbers where Magneto's output goes (its A⁻¹ and b)",
+    "json": "read it with fieldcal.Calibration.from_json, or any JSON reader (docs/json-schema.md)",
+    "ardupilot": "load it in Mission Planner (Config > Full Parameter List > Load from file) "
+    "or MAVProxy (param load FILE), then reboot (docs/ardupilot.md)",
+    "px4": "set CAL_*_ID in it to your sensors' device ids, load it in QGroundControl "
+    "(Vehicle Setup > Parameters > Tools > Load from file), then reboot (docs/px4.md)",
+    "mat": "load it with scipy.io.loadmat or MATLAB's load",
+    "kalibr": "give it to Kalibr as the IMU's yaml (--imu), with the readings corrected by "
+    "fieldcal apply",
+    "openvins": "give it to OpenVINS as kalibr_imu_chain.yaml, fed the columns fieldcal apply "
+    "writes (a*_cal, g*_cal)",
+}
+
+
+def _wrote(what: str, fmt: str) -> None:
+    """One line on stderr (stdout may carry the export itself): what was written, what next."""
+    step = NEXT_STEP.get(fmt)
+    click.echo(f"wrote {what} ({fmt})" + (f"; next: {step}" if step else ""), err=True)
+
+
 _SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values() if f.suffix)
 
 
@@ -208,8 +256,9 @@ _SUFFIXES = ", ".join(f"{f.suffix} {f.name}" for f in exports.FORMATS.values() i
     "--allow-out-of-range",
     is_flag=True,
     help="ardupilot, px4: write a value outside the range the autopilot accepts, marked by a "
-    "comment, instead of refusing the export.",
+    "comment, instead of refusing the export (one warning line names them).",
 )
+@click.option("--quiet", "-q", is_flag=True, help="Print only errors and warnings.")
 @force_option
 def export(
     cal_json: str,
@@ -218,9 +267,11 @@ def export(
     sysid: int | None,
     compid: int | None,
     allow_out_of_range: bool,
+    quiet: bool,
     force: bool,
 ) -> None:
-    """Write the calibration for firmware or another tool, its convention stated in the text."""
+    """Write the calibration for firmware or another tool, its convention stated in the text;
+    say what was written and the next step (on stderr)."""
     options: dict[str, object] = {
         k: v for k, v in (("sysid", sysid), ("compid", compid)) if v is not None
     }
@@ -240,6 +291,8 @@ def export(
         _files.make_folder(output)
         # the files are only right together (the C library's .h and .c): all or none
         _files.write_together({Path(output) / name: data for name, data in files.items()})
+        if not quiet:
+            _wrote(", ".join(str(Path(output) / name) for name in files), fmt)
         return
     claim([output], {"calibration": cal_json}, force)
     if fmt is None:
@@ -251,12 +304,16 @@ def export(
         if not output:
             raise InputError(f"the {fmt} format is binary: give -o FILE{exports.get(fmt).suffix}")
         _files.write_bytes(output, data)
+        if not quiet:
+            _wrote(output, fmt)
         return
     text = exports.export(cal, fmt, **options)
     if output:
         _files.write_text(output, text if text.endswith("\n") else text + "\n")
     else:
         click.echo(text.rstrip("\n"))
+    if not quiet and (output or sys.stderr.isatty()):  # a pipe's reader wants the text alone
+        _wrote(output or "to stdout", fmt)
 
 
 # ----------------------------------------------------------------------------- report
@@ -283,6 +340,7 @@ def report(
     if png_dir is not None:
         pngs = [Path(png_dir) / f"{name}.png" for name in library.FIGURES]
         claim(pngs, inputs, force, folders_made=True)
+    check_order(cal_json, log, "report")
     check_matplotlib()
     cal = read_cal(cal_json)
     with progress_line(quiet) as progress:

@@ -20,6 +20,7 @@ from ..metrics import reconstruction_error
 from ..simulation.handwave import simulate_handwave
 from ..simulation.session import PRESETS, Preset, Session
 from ..simulation.session import simulate as simulate_session
+from ..simulation.warmup import simulate_warmup_log
 from . import library
 from .group import claim, cli, finish, force_option, open_console, progress_line, write_json
 from .options import Number, run_calibration
@@ -99,7 +100,9 @@ def demo(seed: int, out_dir: str | None, no_report: bool, continuous: bool, forc
         with progress_line(False) as progress:
             if progress is not None:
                 progress("drawing the report")
-            library.write_report(cal, library.load_log(log_path), folder / "report.html")
+            library.write_report(
+                cal, library.load_log(log_path), folder / "report.html", on_progress=progress
+            )
         console.print(f"report: {folder / 'report.html'}")
     console.print(f"done in {time.perf_counter() - started:.1f} s; files in {folder}")
     finish(cal, summary_shown=True)
@@ -132,7 +135,12 @@ def _demo_continuous(
             f"{np.max(np.abs(cal.gyro.bias - sim.truth.gyro.bias)):.2g} rad/s (largest axis)"
         )
     if with_report:
-        library.write_report(cal, library.load_log(log_path), folder / "report.html")
+        with progress_line(False) as progress:
+            if progress is not None:
+                progress("drawing the report")
+            library.write_report(
+                cal, library.load_log(log_path), folder / "report.html", on_progress=progress
+            )
         console.print(f"report: {folder / 'report.html'}")
     elif not no_report:
         console.print(
@@ -168,6 +176,25 @@ def _demo_continuous(
     show_default=True,
     help="Hz (--continuous).",
 )
+@click.option(
+    "--handwave",
+    is_flag=True,
+    help="A log waved by hand with no rests (t, ax.., gx.., mx.., rad/s), --seconds long: "
+    "calibrated from the motion (calibrate --poses auto or continuous).",
+)
+@click.option(
+    "--warmup",
+    is_flag=True,
+    help="A warm-up log: still poses joined by motion while the board warms, each bias "
+    "drifting with the temperature column `temp` (deg C).",
+)
+@click.option(
+    "--seconds",
+    type=Number(5.0, 3600.0, low_open=False),
+    default=60.0,
+    show_default=True,
+    help="--handwave: the log's length in seconds.",
+)
 @force_option
 def simulate(
     preset: str,
@@ -178,10 +205,20 @@ def simulate(
     poses: int | None,
     handheld: bool,
     rate: float,
+    handwave: bool,
+    warmup: bool,
+    seconds: float,
     force: bool,
 ) -> None:
-    """Write a synthetic session to try the tool on (a `pose` column, or --continuous)."""
+    """Write a synthetic session to try the tool on: a `pose` column, or a time-stamped log
+    (--continuous: motion between still poses; --handwave: waved by hand, no rests;
+    --warmup: biases drifting as the board warms)."""
     claim([output, truth], {}, force)
+    if sum((continuous, handwave, warmup)) > 1:
+        raise click.UsageError("give one of --continuous, --handwave and --warmup")
+    if handwave or warmup:
+        _simulate_log(seed, output, truth, handwave, seconds, poses, rate)
+        return
     extra: Preset = {"n_poses": poses} if poses else {}
     if handheld:
         extra["pose_distribution"] = "handheld"
@@ -205,6 +242,35 @@ def simulate(
     if truth:
         _files.write_text(truth, true_cal.to_json() + "\n")
     click.echo(f"wrote {output}" + (f" and {truth}" if truth else ""))
+
+
+def _simulate_log(
+    seed: int,
+    output: str,
+    truth: str | None,
+    handwave: bool,
+    seconds: float,
+    poses: int | None,
+    rate: float,
+) -> None:
+    """``simulate --handwave`` and ``--warmup``: the log, and its truth when asked."""
+    if handwave:
+        waved = simulate_handwave(seed=seed, seconds=seconds, rate=rate)
+        write, true_cal = waved.write_csv, waved.truth
+        what = f"{seconds:g} s of hand-waving with no rests at {rate:g} Hz"
+    else:
+        warm = simulate_warmup_log(seed=seed, n_poses=poses or 18, rate=rate)
+        write, true_cal = warm.write_csv, warm.log.session.truth
+        t = warm.columns["temp"]
+        what = (
+            f"a warm-up log: {poses or 18} still poses joined by motion at {rate:g} Hz, "
+            f"{t.min():.1f} to {t.max():.1f} °C (column temp), biases drifting with it"
+        )
+    with _files.replacing(output) as temp:
+        write(str(temp))
+    if truth:
+        _files.write_text(truth, true_cal.to_json() + "\n")
+    click.echo(f"wrote {output}: {what}" + (f"; the truth in {truth}" if truth else ""))
 
 
 # ----------------------------------------------------------------------------- field

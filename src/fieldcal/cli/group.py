@@ -195,6 +195,20 @@ class _Group(click.Group):
         except click.UsageError as exc:
             raise _UsageError.of(exc) from None
 
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """Each command with its whole summary (the help's first paragraph), wrapped, not cut
+        at click's 45 characters."""
+        rows = []
+        for name in self.list_commands(ctx):
+            command = self.get_command(ctx, name)
+            if command is None or command.hidden:
+                continue
+            text = command.short_help or (command.help or "").split("\n\n", 1)[0]
+            rows.append((name, one_line(text)))
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
     def invoke(self, ctx: click.Context) -> object:
         debug = _debug()
         caught: list[warnings.WarningMessage] = []
@@ -246,7 +260,8 @@ class _Group(click.Group):
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="fieldcal")
 def cli() -> None:
-    """Calibrate an accelerometer and a magnetometer together from a log of still poses.
+    """Calibrate an IMU's accelerometer, magnetometer and gyroscope together, by maximum
+    likelihood, from a log of rests, hand-held motion or a flight.
 
     Start with `fieldcal demo`, then `fieldcal calibrate LOG -o cal.json`.
     """
@@ -318,6 +333,12 @@ def read_cal(path: str) -> Calibration:
         raise InputError(
             f"{path}: not a text file; give the calibration JSON `fieldcal calibrate` wrote"
         ) from None
+    if not text.lstrip("\ufeff \t\r\n").startswith("{"):
+        first = one_line(text.lstrip().split("\n", 1)[0])[:60]
+        raise InputError(
+            f"{path}: is not a calibration JSON (its first line is {first!r}); give the JSON "
+            "`fieldcal calibrate` wrote"
+        )
     return library.Calibration.from_json(text)
 
 

@@ -41,10 +41,23 @@ __all__ = [
     "angle_deg",
     "candidates",
     "describe",
+    "fibonacci_sphere",
     "orientation_from_vectors",
 ]
 
 Array = NDArray[np.float64]
+
+
+def fibonacci_sphere(n: int) -> Array:
+    """``n`` unit vectors spread evenly on the sphere (a Fibonacci lattice): the orientations
+    the predicted accuracy averages over (:mod:`fieldcal.trust.accuracy`) and its measurement
+    against a simulated truth (:mod:`fieldcal.simulation.measured`)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    r = np.sqrt(1.0 - z * z)
+    phi = np.pi * (1.0 + 5**0.5) * k
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
 
 AXES = ("X", "Y", "Z")
 #: Headings of the named axis, degrees clockwise from magnetic north seen from above.

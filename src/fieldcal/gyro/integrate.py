@@ -64,7 +64,9 @@ def effective_time(time: ArrayLike) -> Array:
     """Timestamps with bursts spread out: strictly increasing, in seconds.
 
     A run of rows sharing one timestamp keeps its order and shares the interval up to the
-    next distinct timestamp equally (a run at the end of the log shares the median step).
+    next distinct timestamp equally (a run at the end of the log shares the median step). A
+    step back of less than a typical step (jitter: samples written slightly out of order) makes
+    the row share the latest time before it.
 
     Parameters
     ----------
@@ -79,7 +81,7 @@ def effective_time(time: ArrayLike) -> Array:
     Raises
     ------
     InputError
-        When a timestamp is not finite or smaller than the one before.
+        When a timestamp is not finite or goes back by more than a typical step.
     """
     t = np.asarray(time, dtype=float)
     if t.ndim != 1:
@@ -89,11 +91,20 @@ def effective_time(time: ArrayLike) -> Array:
         raise InputError(f"time has a NaN or inf value at row {row}; drop that row or fix it")
     step = np.diff(t)
     if np.any(step < 0):
-        row = int(np.argmax(step < 0)) + 1
-        raise InputError(
-            f"time goes backwards at row {row} ({t[row - 1]:.6g} s, then {t[row]:.6g} s); "
-            "split the log at the reset (split_on_reset=True) or sort it"
-        )
+        positive = step[step > 0]
+        typical = float(np.median(positive)) if positive.size else 0.0
+        if np.all(step > -typical):
+            # jitter (two sensors' samples written slightly out of order, as the reader keeps
+            # it): such a row shares the time of the latest before it and is spread below
+            t = np.maximum.accumulate(t)
+            step = np.diff(t)
+        else:
+            row = int(np.argmax(step <= -typical)) + 1
+            raise InputError(
+                f"time goes backwards at row {row} ({t[row - 1]:.6g} s, then {t[row]:.6g} s); "
+                "pass --split-on-reset (split_on_reset=True) to start a new segment at a reset "
+                "of the clock, or sort the log by time"
+            )
     repeated = step == 0
     if not np.any(repeated):
         return t

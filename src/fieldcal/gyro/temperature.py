@@ -29,6 +29,7 @@ from ..errors import InputError
 from ..likelihood.temperature import ALPHA, MIN_SPAN_K, allowed_order, refusal
 from ..stats.pose_temperature import PoseTemperature
 from ..thermal import TemperatureModel, temperature_names
+from .data import drift_line
 from .result import BIAS_NAMES, GyroFit
 from .uncertainty import WIDEN_P
 
@@ -199,4 +200,15 @@ def with_bias_temperature(
         matrix[m:, m:] = thermal.covariance
         changes["bias"] = thermal.bias
         changes["covariance"] = ParameterCovariance((*names, *extra), matrix)
+    model = thermal.model
+    if model.order > 0 and len(t) >= 3:
+        # the drift test asks what the temperature terms leave: the poses' biases less b(T)
+        left = np.asarray(fit.pose_bias) - model.shift(t)
+        slope, p_value, _, _ = drift_line(
+            left, np.asarray(fit.pose_time), np.asarray(fit.pose_duration), fit.rate_noise
+        )
+        if slope is not None:
+            changes.update(
+                drift=float(np.linalg.norm(slope)), drift_rate=slope, drift_p_value=p_value
+            )
     return dataclasses.replace(fit, **changes)  # type: ignore[arg-type]

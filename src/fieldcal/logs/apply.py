@@ -141,8 +141,11 @@ def apply_to_file(
     temperature: float | None = None,
     current_col: str | None = None,
     throttle_col: str | None = None,
+    gyro_cols: str | Sequence[str] | None = None,
 ) -> dict[str, list[str]]:
-    """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``.
+    """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``: the
+    accelerometer's, the magnetometer's and the gyroscope's (rad/s) that the calibration
+    holds and the log has.
 
     Parameters
     ----------
@@ -152,8 +155,9 @@ def apply_to_file(
     dst : str or Path
         The output, in the format its suffix names (see the module docstring); replaced
         atomically if it exists. It must not be ``src`` (compared by file identity).
-    accel_cols, mag_cols : str or sequence of str, optional
-        The sensors' columns (default: recognised by name).
+    accel_cols, mag_cols, gyro_cols : str or sequence of str, optional
+        The sensors' columns (default: recognised by name); a sensor the calibration holds
+        whose columns the log lacks is left out (not all of them).
     chunk_rows : int, optional
         Lines per chunk when text is streamed (default :data:`CHUNK_ROWS`).
     on_progress : callable, optional
@@ -166,8 +170,9 @@ def apply_to_file(
         A ROS bag's topics (:func:`~fieldcal.logs.rosbag.read_bag`): its table (``t``,
         ``ax``.., ``gx``.., ``mx``..) is written with the calibrated columns.
     temp_col : str, optional
-        The temperature column (°C), for a calibration with temperature terms (default:
-        recognised by name, as ``calibrate`` does).
+        The temperature column (°C), for a calibration with temperature terms (default: the
+        column the calibration recorded, ``options["columns"]["temperature"]``, when the log
+        has it; else recognised by name, as ``calibrate`` does).
     temperature : float, optional
         One temperature (°C) for every row, instead of a column.
     current_col, throttle_col : str, optional
@@ -192,8 +197,8 @@ def apply_to_file(
     if same_file(src, dst):
         raise InputError(f"{dst}: is the input log {src}; write the output to another file")
     check_pyarrow(src, dst)
-    sensors = [s for s in ("accel", "mag") if getattr(cal, s) is not None]
-    columns = {"accel": accel_cols, "mag": mag_cols}
+    sensors = [s for s in ("accel", "mag", "gyro") if getattr(cal, s, None) is not None]
+    columns = {"accel": accel_cols, "mag": mag_cols, "gyro": gyro_cols}
     thermal = _Thermal(cal, sensors, temp_col, temperature)
     drive = _Drive(cal, current_col, throttle_col)
     if is_bag(src):  # (a rosbag2 bag is a folder)
@@ -300,6 +305,9 @@ class _Thermal:
         if not needed or self.constant is not None:
             return None
         found = recognise_columns(header).get("temperature")
+        recorded = (self.cal.options.get("columns") or {}).get("temperature") or [None]
+        if recorded[0] in header:  # the column the calibration was fitted with
+            found = recorded
         name = self.column or (found[0] if found else None)
         if name is None:
             raise InputError(
@@ -349,7 +357,7 @@ def _columns_for_apply(
     if not used:
         raise InputError(
             f"{path}: no columns for the calibrated sensors ({', '.join(sensors)}) among "
-            f"{_shown(header)}; pass --accel-cols/--mag-cols"
+            f"{_shown(header)}; pass --accel-cols/--mag-cols/--gyro-cols"
         )
     return used
 
@@ -382,6 +390,8 @@ def _correct(
 ) -> Array:
     if sensor == "accel":
         return cal.correct_accel(raw, temperature)
+    if sensor == "gyro":
+        return cal.correct_gyro(raw, temperature)
     return cal.correct_mag(raw, temperature)
 
 

@@ -41,12 +41,13 @@ from numpy.typing import NDArray
 
 from ..errors import NO_STILL, InputError, MovingRestsWarning
 from .log import Log
-from .stillness import Segment, StillResult, _column_sums, detect_still, scale_of
+from .stillness import SHORT_LOG, Segment, StillResult, _column_sums, detect_still, scale_of
 
 __all__ = [
     "MOTION_LIMIT",
     "NO_STILL",
     "POSE_SOURCES",
+    "SHORT_LOG",
     "WINDOW",
     "PoseEntry",
     "PoseSet",

@@ -35,7 +35,15 @@ from .columns import DEVICE_WORDS, normalise
 from .log import Log
 from .pose_finding import PoseSet, _unit_directions, poses_from_log, turns_slowly
 
-__all__ = ["MAX_RETRIES", "RATE_GUESSES", "RETRY_SAMPLES", "PoseHint", "pose_advice", "pose_hints"]
+__all__ = [
+    "MAX_RETRIES",
+    "RATE_GUESSES",
+    "RETRY_SAMPLES",
+    "SEPARATE_READINGS",
+    "PoseHint",
+    "pose_advice",
+    "pose_hints",
+]
 
 #: Most still detections tried again (each reads the whole log once).
 MAX_RETRIES = 9
@@ -255,6 +263,15 @@ def _subset(log: Log, rows: NDArray[np.intp] | None) -> Log:
         temperature=pick(log.temperature),
         labels={k: v[rows] for k, v in log.labels.items()},
     )
+
+
+#: The advice for a log with neither time nor gyroscope whose rows are too few or too far
+#: apart for still detection: a Magneto-style log of readings taken now and then.
+SEPARATE_READINGS = (
+    "for a log of separate readings turned by hand (no time column, a reading now and then, "
+    "as Magneto and MotionCal record) use --poses samples (poses='samples'): each row is a "
+    "pose; for a stream, give its sample rate with --rate HZ"
+)
 
 
 def pose_advice(log: Log, **settings: Any) -> str | None:

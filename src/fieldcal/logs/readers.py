@@ -25,6 +25,7 @@ from ..errors import InputError
 from .arrow_parser import pyarrow_module
 from .dataflash import read_dataflash
 from .flight import FlightLog, flight_table
+from .sniff import not_a_log
 from .text import (
     LONGEST_FIELD,
     Table,
@@ -247,6 +248,9 @@ def read_table(
             return read_text(path, decimal=decimal, on_progress=on_progress)
         return reader(path)
     except InputError:
+        # a refused text log is most often another file given by mistake: say which
+        if reader is None and (what := not_a_log(path)) is not None:
+            raise InputError(what) from None
         raise
     except (OSError, ValueError, EOFError, MemoryError) as exc:
         reason = " ".join(str(exc).split())[:120] or type(exc).__name__

@@ -36,10 +36,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
+from ..errors import SHORT_LOG, InputError
 from ..limits import power_of_two
 
-__all__ = ["Segment", "StillResult", "detect_still", "moving_variance", "scale_of"]
+#: The message's words for a log shorter than one detection window (a few shots, one a row).
+
+__all__ = ["SHORT_LOG", "Segment", "StillResult", "detect_still", "moving_variance", "scale_of"]
 
 Array = NDArray[np.float64]
 
@@ -417,7 +419,8 @@ def detect_still(
     if n < window:
         raise InputError(
             f"the log has {n} samples, fewer than one detection window "
-            f"({max(window, length):.6g}); record longer or give a shorter window"
+            f"({max(window, length):.6g}); record longer or give a shorter window",
+            code=SHORT_LOG,
         )
     breaks = _bounds(n, _segments(segment, n))
     bounds = _windows(n, window, breaks)

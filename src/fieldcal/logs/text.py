@@ -375,8 +375,8 @@ def layout(path: Path | str, lines: Sequence[str], decimal: str | None = None) -
         found = Layout(head[first], first, first + 1, delimiter)
     if comma and found.delimiter is None and "," in found.header:
         raise InputError(
-            f"{path}: decimal=',' needs columns separated by ';', tabs or blanks, but they are "
-            "separated by ','; write the numbers with points or the columns with ';'"
+            f"{path}: decimal=',' needs columns separated by ';', tabs or blanks (--decimal ,), "
+            "but they are separated by ','; write the numbers with points or the columns with ';'"
         )
     return _with_decimal(head, found, decimal)
 

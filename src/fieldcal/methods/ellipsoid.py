@@ -185,7 +185,7 @@ def _pose_inputs(
     if stats.n_poses < MIN_POSES:
         raise ValueError(
             f"{stats.n_poses} poses given; the ellipsoid of Eq. 8 has 9 free parameters, so "
-            f"method='ellipsoid' needs at least {MIN_POSES} distinct poses"
+            f"method='ellipsoid' (--method ellipsoid) needs at least {MIN_POSES} distinct poses"
         )
     raw = {"accel": raw_accel, "mag": raw_mag}
     samples = {

@@ -463,8 +463,8 @@ def _check(
 ) -> None:
     if stats is None or stats.accel is None or stats.mag is None:
         raise ValueError(
-            "method='greedy' needs both accelerometer and magnetometer poses; "
-            "use method='mle' to calibrate one sensor"
+            "method='greedy' (--method greedy) needs both accelerometer and magnetometer "
+            "poses; use method='mle' (--method mle) to calibrate one sensor"
         )
     for name in ("accel", "mag"):
         if stats.sensor(name).cov is None:

@@ -29,9 +29,18 @@ from ..geometry.rotations import log_so3
 from ..logs import Log
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure as MplFigure
 
-__all__ = ["CAPTIONS", "TITLES", "is_continuous", "motion_figures"]
+__all__ = [
+    "CAPTIONS",
+    "TITLES",
+    "downweighted_rows",
+    "is_continuous",
+    "motion_figures",
+    "readable_sphere",
+    "rest_rows",
+]
 
 Array = NDArray[np.float64]
 
@@ -112,11 +121,11 @@ def _trajectory_figure(Figure: type[MplFigure], cal: Calibration, log: Log) -> M
     lon = np.arctan2(up[pick, 1], up[pick, 0])
     lat = np.arcsin(np.clip(up[pick, 2], -1, 1))
     dots = sphere.scatter(lon, lat, c=t[rows][pick], s=4, cmap="viridis")
-    sphere.grid(True)
+    readable_sphere(sphere)
     share = cal.options.get("trajectory", {}).get("gravity_coverage")
     covered = "" if share is None else f": {100 * float(share):.0f} % of directions visited"
     sphere.set_title(f"body's up direction (body frame){covered}", pad=18, fontsize=10)
-    fig.colorbar(dots, ax=sphere, orientation="horizontal", fraction=0.05, pad=0.08, label=xlabel)
+    fig.colorbar(dots, ax=sphere, orientation="horizontal", fraction=0.05, pad=0.12, label=xlabel)
     ax = fig.add_subplot(1, 2, 2)
     times, turned = _turns(cal, log, t, rows)
     pick = _thin(len(times))
@@ -131,6 +140,49 @@ def _trajectory_figure(Figure: type[MplFigure], cal: Calibration, log: Log) -> M
     return fig
 
 
+def readable_sphere(ax: Axes) -> None:
+    """A Mollweide map's grid that no label collides with: matplotlib writes eleven longitude
+    labels along the equator, under the points; here the meridians every 60° are named once,
+    below the map, and the latitudes every 30° at its left edge, small."""
+    ax.set_xticks(np.radians([-120, -60, 0, 60, 120]))
+    ax.set_xticklabels([])
+    ax.set_yticks(np.radians([-60, -30, 0, 30, 60]))
+    ax.set_yticklabels(["-60°", "-30°", "0°", "30°", "60°"], fontsize=7)
+    ax.grid(True, color="0.8", lw=0.6)
+    ax.text(
+        0.5,
+        -0.06,
+        "longitude: 0° at the centre, meridians every 60°, ±180° at the edges",
+        transform=ax.transAxes,
+        ha="center",
+        va="top",
+        fontsize=7,
+        color="0.35",
+    )
+
+
+#: A rest: the gyroscope's rate under this (rad/s), smoothed over half a second, for a second.
+_REST_RATE, _REST_SECONDS = 0.05, 1.0
+
+
+def rest_rows(log: Log) -> list[tuple[int, int]]:
+    """The rests of a log with a gyroscope (and time): [first, stop) positions where the
+    smoothed angular rate stays under :data:`_REST_RATE` for :data:`_REST_SECONDS` or more."""
+    if log.gyro is None or log.time is None or log.n < 3:
+        return []
+    t = np.asarray(log.time, dtype=float)
+    step = float(np.median(np.diff(t))) or 1.0
+    k = max(1, round(0.5 / step))
+    rate = np.linalg.norm(np.asarray(log.gyro, dtype=float), axis=1)
+    smooth = np.convolve(rate, np.ones(k) / k, mode="same")
+    still = np.concatenate([[False], smooth < _REST_RATE, [False]])
+    edges = np.flatnonzero(np.diff(still.astype(np.int8)))
+    least = max(2, round(_REST_SECONDS / step))
+    return [
+        (int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= least
+    ]
+
+
 def _residuals(cal: Calibration, log: Log, sensor: str, rows: NDArray[np.int64]) -> Array:
     """``|raw − (K R_j field + b)| / |field|`` at the kept epochs."""
     sc = cal.sensor(sensor)
@@ -142,7 +194,7 @@ def _residuals(cal: Calibration, log: Log, sensor: str, rows: NDArray[np.int64])
     return out
 
 
-def _stretches(cal: Calibration, log: Log) -> list[tuple[int, int]]:
+def downweighted_rows(cal: Calibration, log: Log) -> list[tuple[int, int]]:
     """The down-weighted stretches as [first, stop) positions among the log's rows."""
     found = cal.options.get("downweighted") or []
     out = []
@@ -162,7 +214,7 @@ def _residual_figure(Figure: type[MplFigure], cal: Calibration, log: Log) -> Mpl
     sensors = [s for s in ("accel", "mag") if getattr(log, s) is not None and getattr(cal, s)]
     fig = Figure(figsize=(11, 0.9 + 2.2 * max(len(sensors), 1)))
     axes = fig.subplots(max(len(sensors), 1), 1, sharex=True, squeeze=False)[:, 0]
-    stretches = _stretches(cal, log)
+    stretches = downweighted_rows(cal, log)
     pick = _thin(len(rows))
     for ax, s in zip(axes, sensors, strict=False):
         share = 100 * _residuals(cal, log, s, rows)

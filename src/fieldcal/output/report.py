@@ -63,9 +63,17 @@ from .._files import make_folder, same_file, write_bytes, write_text
 from ..calibration import SENSORS, Calibration, SensorCalibration
 from ..errors import InputError
 from ..logs import Log, load_log
+from ..trust.accuracy import temperature_span
+from ..trust.wording import banner_headline, certificate_reading, status_shown
 from .motion_figures import CAPTIONS as MOTION_CAPTIONS
 from .motion_figures import TITLES as MOTION_TITLES
-from .motion_figures import is_continuous, motion_figures
+from .motion_figures import (
+    downweighted_rows,
+    is_continuous,
+    motion_figures,
+    readable_sphere,
+    rest_rows,
+)
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
@@ -81,9 +89,9 @@ _TIMELINE_POINTS = 3000  # per line: the envelope of 1500 buckets
 _TIMELINE_LABELS = 40  # pose numbers written over the timeline, at most
 _DPI = 90
 
-_LABELS = {"accel": "accelerometer", "mag": "magnetometer"}
+_LABELS = {"accel": "accelerometer", "mag": "magnetometer", "gyro": "gyroscope"}
 _SYMBOLS = {"accel": "a", "mag": "m"}
-_FITTED, _REJECTED = "tab:green", "tab:red"
+_FITTED, _REJECTED, _DOWNWEIGHTED = "tab:green", "tab:red", "tab:orange"
 
 
 # ----------------------------------------------------------------------------- the poses
@@ -216,8 +224,14 @@ def _envelope(x: Array, y: Array) -> tuple[Array, Array]:
 
 
 def _timeline_figure(
-    Figure: type[MplFigure], log: Log, sensors: Sequence[str], poses: list[_Pose]
+    Figure: type[MplFigure],
+    log: Log,
+    sensors: Sequence[str],
+    poses: list[_Pose],
+    motion: tuple[list[tuple[int, int]], list[tuple[int, int]]] | None = None,
 ) -> MplFigure:
+    """The raw readings against time, the poses' still intervals shaded; for a continuous fit
+    (``motion``: the stretches down-weighted for body acceleration, and the rests) those."""
     if log.time is not None:
         x, xlabel = np.asarray(log.time, dtype=float), "time (s)"
     else:
@@ -229,6 +243,10 @@ def _timeline_figure(
         for k, color in enumerate(("tab:red", "tab:green", "tab:blue")):
             ax.plot(*_envelope(x, raw[:, k]), color=color, lw=0.7, label="xyz"[k])
         ax.set_ylabel(f"raw {_LABELS[s]}")
+        for lo, hi in motion[0] if motion else ():
+            ax.axvspan(x[lo], x[hi - 1], color=_DOWNWEIGHTED, alpha=0.25, lw=0)
+        for lo, hi in motion[1] if motion else ():
+            ax.axvspan(x[lo], x[hi - 1], color=_FITTED, alpha=0.18, lw=0)
         for pose in poses:
             for lo, hi in pose.spans:
                 if pose.rejected is None:
@@ -254,8 +272,18 @@ def _timeline_figure(
             color=_FITTED if pose.rejected is None else _REJECTED,
         )
     axes[-1].set_xlabel(xlabel)
-    fig.suptitle("log timeline: still intervals of fitted poses (green) and rejected ones (red)")
-    fig.subplots_adjust(left=0.08, right=0.95, top=1 - 0.95 / fig.get_figheight(), hspace=0.15)
+    if motion is None:
+        title = "log timeline: still intervals of fitted poses (green) and rejected ones (red)"
+    else:
+        down, rests = (len(m) for m in motion)
+        title = (
+            "log timeline: the motion the calibration was fitted to (no still poses)\nshaded: "
+            f"{down} stretch(es) down-weighted for body acceleration (orange), "
+            f"{rests} rest(s) (green)"
+        )
+    fig.suptitle(title, fontsize=11)
+    top = 1 - (0.95 if motion is None else 1.15) / fig.get_figheight()
+    fig.subplots_adjust(left=0.08, right=0.95, top=top, hspace=0.15)
     return fig
 
 
@@ -371,10 +399,19 @@ def _coverage_figure(
         ax = fig.add_subplot(1, len(directions), k + 1, projection="mollweide")
         lon = np.arctan2(d[:, 1], d[:, 0])
         lat = np.arcsin(np.clip(d[:, 2], -1, 1))
-        ax.scatter(lon, lat, s=30, color=colors)
+        ax.scatter(lon, lat, s=30, color=colors, zorder=3)
+        readable_sphere(ax)
         for pose, x, y in zip(poses, lon, lat, strict=True):
-            ax.annotate(_plain(pose.name), (x, y), fontsize=7)
-        ax.grid(True)
+            # beside its dot, on a white ground: readable over the grid and its labels
+            ax.annotate(
+                _plain(pose.name),
+                (x, y),
+                xytext=(4, 4),
+                textcoords="offset points",
+                fontsize=7,
+                zorder=4,
+                bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+            )
         ax.set_title(f"{name} field direction per pose (sensor frame)", pad=20)
     fig.subplots_adjust(left=0.04, right=0.98, wspace=0.15)
     return fig
@@ -452,7 +489,12 @@ def _histogram_figure(
     expected: Mapping[str, float],
     dip: Array | None,
     cal: Calibration,
+    which: str = "",
 ) -> MplFigure:
+    """Norm (and dip) histograms of the calibrated samples: the fitted poses' still samples,
+    or ``which`` (a continuous fit: "every sample", the motion included)."""
+    samples = which or "still samples"
+    fitted_label = "all samples" if which else "fitted poses"
     panels = len(norms) + (dip is not None)
     fig = Figure(figsize=(4 * panels, 3.5))
     axes = np.atleast_1d(fig.subplots(1, panels))
@@ -464,7 +506,7 @@ def _histogram_figure(
         lo, hi = float(span.min()), float(span.max())
         pad = 0.05 * (hi - lo) or 0.01 * abs(target) or 0.01
         edges = np.linspace(lo - pad, hi + pad, 61)
-        ax.hist(fitted, bins=edges, color="tab:blue", label="fitted poses")
+        ax.hist(fitted, bins=edges, color="tab:blue", label=fitted_label)
         if rejected.size:
             outside = int(np.count_nonzero((rejected < edges[0]) | (rejected > edges[-1])))
             label = "rejected poses" + (f" ({outside} samples off the axis)" if outside else "")
@@ -472,7 +514,7 @@ def _histogram_figure(
             ax.hist(rejected, bins=edges, color=_REJECTED, histtype="step", lw=1.2, label=label)
         ref = "g" if s == "accel" else "h"
         ax.axvline(target, color="k", ls="--", lw=1.2, label=f"expected |{ref}| = {target:.6g}")
-        ax.set_title(f"|{symbol}| calibrated, still samples")
+        ax.set_title(f"|{symbol}| calibrated, {samples}")
         ax.legend(fontsize=7)
     if dip is not None:
         ax = axes[-1]
@@ -480,7 +522,7 @@ def _histogram_figure(
         if cal.dip_deg is not None:
             ax.axvline(cal.dip_deg, color="k", ls="--", lw=1, label=f"fit {cal.dip_deg:.2f}°")
             ax.legend(fontsize=7)
-        ax.set_title("dip per still sample (°)")
+        ax.set_title("dip of every sample (°)" if which else "dip per still sample (°)")
     width = fig.get_figwidth()  # margins in inches, so one panel keeps its tick labels
     fig.subplots_adjust(left=0.6 / width, right=1 - 0.1 / width, bottom=0.12, wspace=0.3)
     return fig
@@ -498,12 +540,6 @@ _CSS = (
     ".caption{color:#444;font-size:90%}"
 )
 
-_HEADLINES = {
-    "pass": "PASS: consistent with its noise and within the accuracy targets",
-    "warn": "WARN: usable, but look at the reasons",
-    "fail": "FAIL: do not use this calibration",
-}
-
 
 def _banner_html(cal: Calibration) -> str:
     verdict = cal.verdict
@@ -514,7 +550,7 @@ def _banner_html(cal: Calibration) -> str:
         )
     reasons = "".join(f"<li>{_esc(r.text)}</li>" for r in verdict.reasons)
     body = f"<ul>{reasons}</ul>" if reasons else "<p>no reason for doubt was found</p>"
-    headline = _HEADLINES[verdict.level]
+    headline = banner_headline(cal)
     codes = f'<p class="codes">{_esc(verdict.summary)}</p>' if verdict.reasons else ""
     return f'<div class="verdict {_esc(verdict.level)}"><h2>{headline}</h2>{codes}{body}</div>'
 
@@ -525,21 +561,34 @@ def _summary_html(cal: Calibration, log: Log, poses: list[_Pose]) -> str:
         columns = "; ".join(f"{_esc(k)}: {_esc(', '.join(v))}" for k, v in log.used.items())
         rows.append(("columns", columns))
     rows.extend(("note", _esc(note)) for note in log.notes)
-    n_rejected = sum(p.rejected is not None for p in poses) or len(cal.rejected)
-    rows.append(
-        (
-            "poses",
-            f"{max(len(poses), cal.n_poses)} found, {cal.n_poses} fitted, {n_rejected} rejected",
+    traj = cal.options.get("trajectory")
+    if is_continuous(cal) and isinstance(traj, dict):
+        down = len(cal.options.get("downweighted") or [])
+        rows.append(
+            (
+                "motion",
+                f"{traj['duration_s']:.4g} s of continuous motion, {traj['epochs']} epochs, "
+                f"{100 * traj['gravity_coverage']:.0f} % of gravity directions visited, "
+                f"{down} stretch(es) down-weighted for body acceleration (no still poses)",
+            )
         )
-    )
+    else:
+        n_rejected = sum(p.rejected is not None for p in poses) or len(cal.rejected)
+        found = max(len(poses), cal.n_poses)
+        rows.append(("poses", f"{found} found, {cal.n_poses} fitted, {n_rejected} rejected"))
     rows.append(("method", f"{_esc(cal.method)} (converged: {'yes' if cal.converged else 'no'})"))
     if cal.message:
         rows.append(("optimiser", _esc(cal.message)))
     d = cal.diagnostics
     if d is not None:
-        status = f", {_esc(d.status)}" if d.status else ""
+        shown = status_shown(cal)
+        status = f"; status: {_esc(shown)}" if shown else ""
         rows.append(
-            ("certificate", f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g}{status}")
+            (
+                "certificate",
+                f"J = {d.statistic:.4g}, dof = {d.dof}, p = {d.p_value:.3g} "
+                f"({_esc(certificate_reading(cal))}){status}",
+            )
         )
     ref = cal.field_reference
     if ref is not None:
@@ -564,7 +613,7 @@ def _correction_html(cal: Calibration) -> str:
         "Each entry ± its standard error; the errors of <code>M</code> come from the gain "
         "covariance by the delta method (<code>dM = −M dK M</code>).</p>",
     ]
-    for s in SENSORS:
+    for s in (*SENSORS, "gyro"):
         sensor: SensorCalibration | None = getattr(cal, s)
         if sensor is None:
             continue
@@ -637,6 +686,14 @@ def _uncertainty_html(cal: Calibration) -> str:
         ):
             if value is not None:
                 rows.append((label, f"{value * scale:.3g}{unit}"))
+        span = temperature_span(cal)
+        if span is not None:
+            rows.append(
+                (
+                    "predicted over the logged temperatures",
+                    f"{span[0]:.1f}–{span[1]:.1f} °C (the temperature terms' uncertainty included)",
+                )
+            )
     body = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows)
     return f"<h2>Uncertainty and predicted accuracy</h2><table>{body}</table>"
 
@@ -703,6 +760,22 @@ _CAPTIONS = {
     "pose against time (its bias and how it drifts).",
 }
 
+#: The captions of a continuous fit's figures where the motion, not poses, is drawn.
+_CONTINUOUS_CAPTIONS = {
+    "timeline": "Raw readings against time: the motion the calibration was fitted to (no "
+    "still poses). Shaded orange: stretches down-weighted for body acceleration; green: "
+    "rests (the gyroscope's rate under 0.05 rad/s for a second or more).",
+    "histograms": "Norm of every calibrated sample, the motion included (body acceleration "
+    "widens |a|); dashed: the expected norm (the reference field's magnitude).",
+}
+
+
+def _caption(cal: Calibration, key: str) -> str:
+    if is_continuous(cal) and key in _CONTINUOUS_CAPTIONS:
+        return _CONTINUOUS_CAPTIONS[key]
+    return _CAPTIONS[key]
+
+
 _TITLES = {
     "timeline": "Timeline of the log",
     "residuals": "Per-pose residuals",
@@ -758,7 +831,8 @@ def _figures(cal: Calibration, log: Log | None) -> tuple[dict[str, MplFigure], l
                 f"{log.path}: none of the calibrated sensors' columns are in this log; pass "
                 "--accel-cols/--mag-cols"
             )
-        figures["timeline"] = _timeline_figure(Figure, log, sensors, poses)
+        motion = (downweighted_rows(cal, log), rest_rows(log)) if is_continuous(cal) else None
+        figures["timeline"] = _timeline_figure(Figure, log, sensors, poses, motion)
     with_residuals = [s for s in sensors if any(p.residual[s] is not None for p in poses)]
     if with_residuals:
         figures["residuals"] = _residual_figure(Figure, cal, with_residuals, poses)
@@ -794,7 +868,9 @@ def _log_figures(
         a, m = corrected["accel"][still], corrected["mag"][still]
         cos = np.einsum("ni,ni->n", a, m) / (np.linalg.norm(a, axis=1) * np.linalg.norm(m, axis=1))
         dip = np.degrees(np.arcsin(np.clip(-cos, -1, 1)))
-    figures["histograms"] = _histogram_figure(Figure, norms, expected, dip, cal)
+    figures["histograms"] = _histogram_figure(
+        Figure, norms, expected, dip, cal, "every sample" if is_continuous(cal) else ""
+    )
     sample = _thin(np.arange(log.n), np.random.default_rng(0))
     for s in sensors:
         figures[f"{s}_sphere"] = _sphere_figure(
@@ -860,7 +936,7 @@ def write_report(
             write_bytes(Path(png_dir) / f"{key}.png", buffer.getvalue())
         encoded = base64.b64encode(buffer.getvalue()).decode("ascii")
         section = (
-            f"<h2>{_TITLES[key]}</h2><p class='caption'>{_CAPTIONS[key]}</p>"
+            f"<h2>{_TITLES[key]}</h2><p class='caption'>{_caption(cal, key)}</p>"
             f'<img alt="{_TITLES[key]}" src="data:image/png;base64,{encoded}">'
         )
         if key == "residuals":

@@ -17,6 +17,8 @@ from rich.table import Table
 from rich.text import Text
 
 from ..calibration import Calibration, SensorCalibration
+from ..trust.accuracy import temperature_span
+from ..trust.wording import certificate_reading, status_shown
 
 if TYPE_CHECKING:  # the report is only printed here: loading noise is the command's
     from ..noise import NoiseReport
@@ -145,9 +147,11 @@ def _print_gyro(console: Console, cal: Calibration) -> None:
             if p_value is None
             else (f" (p = {p_value:.2g}: {'drifts' if p_value < 0.01 else 'no significant drift'})")
         )
+        thermal = gyro.temperature is not None and gyro.temperature.order > 0
+        where = " beyond the temperature terms" if thermal else ""
         _say(
             console,
-            f"  bias drift across the log: {info['drift']:.3g} raw units/s "
+            f"  bias drift across the log{where}: {info['drift']:.3g} raw units/s "
             f"({3600 * info['drift']:.3g} per hour){verdict}",
         )
     residuals = [s["residual_deg"] for s in cal.gyro_segments if "residual_deg" in s]
@@ -174,27 +178,27 @@ def _accuracy_line(cal: Calibration) -> str | None:
         parts.append(f"|m| {100 * acc.mag_norm_rel:.3g} %")
     if not parts:
         return None
-    return "predicted accuracy after calibration (1σ, RMS over orientations): " + ", ".join(parts)
+    span = temperature_span(cal)
+    over = (
+        "orientations"
+        if span is None
+        else (
+            f"orientations and the logged temperatures {span[0]:.1f}–{span[1]:.1f} °C, the "
+            "temperature terms' uncertainty included"
+        )
+    )
+    return f"predicted accuracy after calibration (1σ, RMS over {over}): " + ", ".join(parts)
 
 
 def _certificate_line(cal: Calibration) -> str | None:
     diag = cal.diagnostics
     if diag is None:
         return None
-    from_residuals = any(
-        s is not None and s.noise_source == "residuals" for s in (cal.accel, cal.mag)
-    )
-    if from_residuals:
-        reading = "not a test: the noise was estimated from these residuals"
-    elif not np.isfinite(diag.p_value):
-        reading = "no degrees of freedom left for a test"
-    elif diag.p_value > 0.01:
-        reading = "consistent with the noise"
-    else:
-        reading = "the model does not explain the data to within the noise"
+    status = status_shown(cal)
     return (
         f"fit certificate: J = {diag.statistic:.4g}, dof = {diag.dof}, "
-        f"p = {diag.p_value:.3g} ({reading})" + (f"; status: {diag.status}" if diag.status else "")
+        f"p = {diag.p_value:.3g} ({certificate_reading(cal)})"
+        + (f"; status: {status}" if status else "")
     )
 
 

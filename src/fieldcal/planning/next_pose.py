@@ -44,6 +44,7 @@ from ..limits import MOST_PLANNED
 from ..stats.pose_stats import PoseStats, SensorStats
 from ..trust.accuracy import predict_accuracy
 from ..trust.targets import Targets
+from .more_motion import more_motion_advice
 
 __all__ = [
     "FIRST_POSE_MINIMUM",
@@ -223,6 +224,8 @@ def _setup(cal: object, samples: object) -> _Setup:
             "cannot plan for a magnetometer-only calibration: without an accelerometer no pose "
             "says which way is down, so no orientation can be put in words; calibrate with both"
         )
+    if cal.method == "continuous" or "trajectory" in cal.options:
+        raise InputError(more_motion_advice(cal))
     if cal.n_poses == 0:
         raise InputError("the calibration has no poses; capture poses with first_poses first")
     given = _samples(samples)
@@ -233,8 +236,9 @@ def _setup(cal: object, samples: object) -> _Setup:
     if counts is None:
         if given is None:
             raise InputError(
-                "the calibration does not list samples per pose (cal.poses); pass samples= "
-                "(the samples each pose will average)"
+                "the calibration does not list samples per pose (cal.poses); give the samples "
+                "each pose will average (samples=; fieldcal plan needs a calibration JSON "
+                "fieldcal calibrate wrote, which lists them)"
             )
         counts = {s: np.full(cal.n_poses, given, dtype=np.int64) for s in sensors}
     new = {s: given if given is not None else int(np.median(counts[s])) for s in sensors}

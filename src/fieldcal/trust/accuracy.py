@@ -17,6 +17,7 @@ each as an RMS over orientations spread evenly on the sphere (a Fibonacci lattic
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -25,8 +26,9 @@ from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, ParameterCovariance
 from ..covariance import BlockIndex
+from ..geometry.orientations import fibonacci_sphere
 
-__all__ = ["predict_accuracy"]
+__all__ = ["over_span", "predict_accuracy", "temperature_span"]
 
 Array = NDArray[np.float64]
 
@@ -34,16 +36,7 @@ _ORIENTATIONS = 128
 _HEADINGS = 36
 
 
-def _sphere(n: int) -> Array:
-    """``n`` unit vectors spread evenly on the sphere (Fibonacci lattice)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(1.0 - z * z)
-    phi = np.pi * (1.0 + 5**0.5) * k
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-_SPHERE = _sphere(_ORIENTATIONS)
+_SPHERE = fibonacci_sphere(_ORIENTATIONS)
 _SPHERE.setflags(write=False)
 
 
@@ -241,8 +234,62 @@ def _heading_and_inverses(cal: Calibration) -> tuple[float, Array] | None:
     return math.degrees(math.sqrt(max(var, 0.0))), Kinv
 
 
+#: Gauss-Legendre nodes for the mean over the logged temperatures: exact for the products of
+#: two bias polynomials of order up to 3 (degree 6 needs 4 nodes; 8 leave room).
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(8)
+
+
+def temperature_span(cal: Calibration) -> tuple[float, float] | None:
+    """The temperatures logged (°C, lowest and highest over the sensors with temperature
+    terms) over which the predicted errors average the terms' uncertainty; ``None`` without
+    terms."""
+    spans = [
+        sc.temperature.span
+        for sc in (cal.accel, cal.mag)
+        if sc is not None and sc.temperature is not None and sc.temperature.order > 0
+    ]
+    if not spans:
+        return None
+    return float(min(s[0] for s in spans)), float(max(s[1] for s in spans))
+
+
+def over_span(cal: Calibration) -> Calibration:
+    """``cal`` with the covariance of its biases averaged over the logged temperatures: the
+    bias at ``T`` is ``b + Σ_k c_k d^k`` (``d = T − T_ref``, :mod:`fieldcal.thermal`), so its
+    error is ``T(d) [δvec K, δb, δc]`` and its covariance ``T(d) C T(d)ᵀ``; the mean of that
+    over ``T`` uniform on the span (Gauss-Legendre) replaces the bias block, the terms' names
+    dropped. A calibration without temperature terms is returned as it is."""
+    cov, span = cal.covariance, temperature_span(cal)
+    if cov is None or span is None:
+        return cal
+    names = list(cov.names)
+    keep = [i for i, n in enumerate(names) if ".temp[" not in n]
+    where = {n: i for i, n in enumerate(names)}
+    # (node, kept, all): the map from every parameter to the kept ones at each temperature
+    T = np.zeros((len(_NODES), len(keep), len(names)))
+    T[:, np.arange(len(keep)), keep] = 1.0
+    row = {names[i]: r for r, i in enumerate(keep)}
+    temps = span[0] + (span[1] - span[0]) * (_NODES + 1.0) / 2.0
+    for sensor in ("accel", "mag"):
+        sc = cal.sensor(sensor) if getattr(cal, sensor) is not None else None
+        model = None if sc is None else sc.temperature
+        if model is None or model.order == 0:
+            continue
+        d = np.clip(temps, model.span[0], model.span[1]) - model.reference
+        for k in range(1, model.order + 1):
+            for j in range(3):
+                term, bias = f"{sensor}.temp[{k},{j}]", f"{sensor}.bias[{j}]"
+                if term in where and bias in row:
+                    T[:, row[bias], where[term]] = d**k
+    averaged = np.einsum("n,nkl,lm,njm->kj", _WEIGHTS / 2.0, T, cov.matrix, T)
+    kept = ParameterCovariance(tuple(names[i] for i in keep), (averaged + averaged.T) / 2.0)
+    return dataclasses.replace(cal, covariance=kept)
+
+
 def predict_accuracy(cal: Calibration) -> Accuracy:
-    """The predicted 1σ (RMS) errors of :class:`~fieldcal.calibration.Accuracy` for ``cal``."""
+    """The predicted 1σ (RMS) errors of :class:`~fieldcal.calibration.Accuracy` for ``cal``;
+    with temperature terms, RMS over the logged temperatures too (:func:`over_span`)."""
+    cal = over_span(cal)
     accel_norm = tilt = mag_norm = heading = None
     inverses: Array | list[None] = [None, None]
     found = _heading_and_inverses(cal)

@@ -181,7 +181,8 @@ def initial_variances(stats: PoseStats, fixed: dict[str, float | None]) -> PoseS
         if sensor.cov is None and not variance[s] > 0:
             raise ValueError(
                 f"{s}: one sample per pose gives no within-pose scatter (Eq. 7), so its noise "
-                "must come from the residuals: use pose_noise='auto' or give noise=..."
+                "must come from the residuals: use pose_noise='auto' (--pose-noise auto) or give "
+                "noise=... (--noise)"
             )
     return with_variances(stats, variance)
 

@@ -105,14 +105,12 @@ RULES: dict[str, tuple[Level, str]] = {
     "unusable": (
         "fail",
         "the calibration is too uncertain to use (predicted {what} error {value}, more than "
-        "{factor:g}x the {target} target); record more poses, still and away from iron, "
-        "covering every axis up and down",
+        "{factor:g}x the {target} target); {record}",
     ),
     "accuracy": (
         "warn",
-        "the predicted {what} error {value} is worse than the {target} target; record more "
-        "poses, still and away from iron, covering every axis up and down (or set the target "
-        "with --target-{option})",
+        "the predicted {what} error {value} is worse than the {target} target; {record} (or "
+        "set the target with --target-{option})",
     ),
     "untested": (
         "warn",
@@ -490,6 +488,15 @@ def _trimmed(case: Case) -> Iterator[Fired]:
                 )
 
 
+#: What to record for a better calibration, by mode (the rule that fires chooses the advice):
+#: still poses, or (``Case.stats`` None) more continuous motion.
+_MORE = {
+    False: "record more poses, still and away from iron, covering every axis up and down",
+    True: "record the motion longer and through more orientations (every axis up and down, "
+    "turns about each axis), away from iron; fieldcal plan on this calibration names the turns",
+}
+
+
 @_owns("unusable", "accuracy")
 def _accuracy(case: Case) -> Iterator[Fired]:
     """``unusable`` for the first prediction beyond :data:`UNUSABLE_FACTOR` times its target
@@ -512,6 +519,7 @@ def _accuracy(case: Case) -> Iterator[Fired]:
             "value": shown,
             "target": goal,
             "option": option,
+            "record": _MORE[case.stats is None],
         }
         if not value <= UNUSABLE_FACTOR * target:
             yield "unusable", {**numbers, "factor": UNUSABLE_FACTOR}

@@ -75,7 +75,7 @@ def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
     if a.ndim != len(shape) or (width > 1 and a.shape[1] != 3) or (n is not None and len(a) != n):
         raise InputError(f"{name} must have shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise InputError(f"{name} has NaN or inf values; drop those rows (drop_nan=True)")
+        raise InputError(f"{name} has NaN or inf values; drop those rows (--drop-nan)")
     return a
 
 

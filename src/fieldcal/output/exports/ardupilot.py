@@ -34,6 +34,8 @@ unless ``allow_out_of_range``, which writes it with a marking comment above it.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ...calibration import Calibration
@@ -115,6 +117,13 @@ def write(cal: Calibration, *, allow_out_of_range: bool = False) -> str:
             f"cannot export: the length of COMPASS_OFS_X/Y/Z = {length:.6g} mG exceeds "
             f"COMPASS_OFFS_MAX {OFFSETS_MAX:g} (ArduPilot's arming check: Compass offsets too "
             "high); check the calibration's units, or pass --allow-out-of-range to write it marked"
+        )
+    if long_offsets:
+        warnings.warn(
+            "wrote a value outside the range ArduPilot accepts, marked in the file "
+            f"(--allow-out-of-range): the length of COMPASS_OFS_X/Y/Z = {length:.6g} mG",
+            UserWarning,
+            stacklevel=2,
         )
     lines = comment_header(cal, "#")
     lines += [

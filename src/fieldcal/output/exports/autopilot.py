@@ -21,6 +21,7 @@ offsets are in those raw units, which fieldcal cannot check (every file says so)
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -34,6 +35,7 @@ from ...geometry.rotations import rotation_angle_deg
 from .common import corrections
 
 __all__ = [
+    "RAW_UNITS",
     "STANDARD_GRAVITY",
     "AutopilotCalibration",
     "ParameterRange",
@@ -275,6 +277,18 @@ class ParameterRange:
         return f"{a}{self.low:g}, {self.high:g}{b}"
 
 
+#: The raw units each autopilot's corrections take (its drivers' output), for the refusal.
+RAW_UNITS = {
+    "PX4": "accelerometer m/s², magnetometer gauss",
+    "ArduPilot": "accelerometer m/s², compass milligauss",
+}
+
+
+def _raw_units(autopilot_name: str) -> str:
+    """The raw units an autopilot's drivers report (:data:`RAW_UNITS`)."""
+    return RAW_UNITS.get(autopilot_name, "in the units its drivers report")
+
+
 def check_ranges(
     params: list[tuple[str, float]],
     ranges: tuple[ParameterRange, ...],
@@ -312,14 +326,25 @@ def check_ranges(
         for name, value in params
         if name in by_name and not by_name[name].accepts(value)
     }
+    values = dict(params)
     if outside and not allow_out_of_range:
         name, rng = next(iter(outside.items()))
-        value = dict(params)[name]
         more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
         raise InputError(
-            f"cannot export: {name} = {value:.6g} is outside the range {autopilot_name} "
-            f"accepts, {rng.text()} ({rng.source}){more}; check the calibration's units and "
-            "verdict, or pass --allow-out-of-range to write it marked"
+            f"cannot export: {name} = {values[name]:.6g} is outside the range "
+            f"{autopilot_name} accepts, {rng.text()} ({rng.source}){more}; {autopilot_name} "
+            f"corrects its drivers' raw readings, {_raw_units(autopilot_name)}: calibrate a log "
+            "recorded in those units (a log in g gives accelerometer scales near 9.81, one in "
+            "µT magnetometer scales near 100x off), or pass --allow-out-of-range to write it "
+            "marked"
+        )
+    if outside:
+        listed = ", ".join(f"{name} = {values[name]:.6g}" for name in outside)
+        warnings.warn(
+            f"wrote {len(outside)} value(s) outside the range {autopilot_name} accepts, each "
+            f"marked in the file (--allow-out-of-range): {listed}",
+            UserWarning,
+            stacklevel=2,
         )
     return outside
 

@@ -22,8 +22,12 @@ sensor_params_acc0.c define ``CAL_MAG0_XOFF`` … ``CAL_MAG0_ZODIAG`` and ``CAL_
 driver library takes any finite value; its magnetometer calibration
 (``check_calibration_result``, src/modules/commander/mag_calibration.cpp) refuses a
 non-positive scale and flags offsets longer than ``MAG_MAX_OFFSET_LEN`` = 1.3 G ("the mag will
-saturate in some directions"). Those are the ranges checked here (:data:`RANGES`), plus a
-positive accelerometer scale (a zero or negative scale flips or kills the axis).
+saturate in some directions"). Those are checked here (:data:`RANGES`); where PX4 states no
+bound, plausibility bounds as strict as ArduPilot's for the same quantity are: magnetometer
+scales (0.2, 5) and off-diagonals (-1, 1) (ArduPilot's ``CompassCalibrator::fit_acceptable``),
+accelerometer scales [0.5, 2] (a log in g comes out near 9.81, one in mg near 0.0098) and
+accelerometer offsets within a ±16 g sensor's full scale. A refusal names the raw units PX4's
+corrections take (m/s², gauss).
 
 Temperature terms (``docs/methods/temperature.md``), when the calibration has them, become PX4's
 thermal compensation parameters (src/modules/temperature_compensation/: the parameter names in
@@ -63,6 +67,7 @@ from .common import NAMES, TEMPERATURE_FORMULA, comment_header, cubic, exact, te
 from .motor_comp import for_instance, px4_power, zero_input_bias
 
 __all__ = [
+    "ACCEL_FULL_SCALE",
     "CONTENT",
     "FORMULA",
     "MAG_MAX_OFFSET",
@@ -75,12 +80,42 @@ __all__ = [
 #: ``MAG_MAX_OFFSET_LEN`` (gauss) in PX4's mag_calibration.cpp.
 MAG_MAX_OFFSET = 1.3
 
+#: The largest full scale of the MEMS accelerometers PX4 drives (±16 g: ICM-20602, ICM-42688-P,
+#: BMI088 in their widest setting), m/s²: an offset beyond it cannot be a sensor's.
+ACCEL_FULL_SCALE = 16 * 9.80665
+
 _CHECK = "mag_calibration.cpp check_calibration_result"
-#: The ranges PX4 accepts, with where its source states them.
+_PLAUSIBLE = "plausibility: PX4 states no range"
+#: The ranges checked: PX4's own where its source states one (the magnetometer's offsets and a
+#: positive scale), else plausibility bounds as strict as ArduPilot's for the same quantity
+#: (its COMPASS_DIA (0.2, 5) and COMPASS_ODI (-1, 1); an accelerometer scale in [0.5, 2], which a
+#: log in g (scale 9.81) or mg fails; an accelerometer offset within the sensor's full scale).
 RANGES = (
     ParameterRange("CAL_MAG0_{}OFF", -MAG_MAX_OFFSET, MAG_MAX_OFFSET, False, _CHECK),
-    ParameterRange("CAL_MAG0_{}SCALE", 0.0, None, True, _CHECK),
-    ParameterRange("CAL_ACC0_{}SCALE", 0.0, None, True, "a positive scale"),
+    ParameterRange(
+        "CAL_MAG0_{}SCALE",
+        0.2,
+        5.0,
+        True,
+        f"{_CHECK}: > 0; {_PLAUSIBLE}, as ArduPilot's COMPASS_DIA",
+    ),
+    ParameterRange(
+        "CAL_MAG0_{}ODIAG", -1.0, 1.0, True, f"{_PLAUSIBLE}, as ArduPilot's COMPASS_ODI"
+    ),
+    ParameterRange(
+        "CAL_ACC0_{}OFF",
+        -ACCEL_FULL_SCALE,
+        ACCEL_FULL_SCALE,
+        False,
+        f"{_PLAUSIBLE}; a ±16 g sensor's full scale",
+    ),
+    ParameterRange(
+        "CAL_ACC0_{}SCALE",
+        0.5,
+        2.0,
+        False,
+        f"{_PLAUSIBLE}; a MEMS sensitivity error is a few percent",
+    ),
 )
 
 FORMULA = (
@@ -157,7 +192,9 @@ def write(
         "# DROPPED: CAL_ACC0_*SCALE is per axis, so the cross-axis terms are lost:",
         f"# {accel_error_text(ap)}",
         "# Checked against what PX4 accepts (mag_calibration.cpp: |CAL_MAG0_*OFF| <= "
-        f"{MAG_MAX_OFFSET:g} G, scales > 0): "
+        f"{MAG_MAX_OFFSET:g} G, scales > 0) and plausibility (CAL_MAG0 scales (0.2, 5), "
+        "ODIAG (-1, 1),",
+        f"# CAL_ACC0 scales [0.5, 2], |offsets| <= {ACCEL_FULL_SCALE:.5g} m/s²): "
         + (f"{len(outside)} OUTSIDE, written marked." if outside else "all inside."),
         f"# Vehicle {sysid}, component {compid} (fieldcal export --sysid/--compid): QGroundControl",
         "# loads these lines only onto the vehicle with that system id.",
