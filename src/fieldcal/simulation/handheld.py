@@ -227,6 +227,98 @@ def _rest_intervals(seconds: float, rests: int, rest_seconds: float) -> list[tup
     return [(c - rest_seconds / 2, c + rest_seconds / 2) for c in centres]
 
 
+def _turning(
+    t: Array,
+    rate: float,
+    fine_k: int,
+    turn: _Sinusoids,
+    envelope: _Envelope,
+    max_rate: float,
+    R0: Array,
+    gyro_sampling: str,
+) -> tuple[Array, Array, Array, Array]:
+    """The trajectory at the samples ``t``, the rate and its derivative there, and what the
+    gyroscope reads of the rate (instant, or the mean over the interval that follows)."""
+    n = len(t)
+    fine = np.arange((n - 1) * fine_k + 1) / (rate * fine_k)
+    # scaled so the peak norm is max_rate, found on a 1 kHz grid of its own so that the scale,
+    # and with it the motion, does not depend on the integration grid
+    grid = np.linspace(0.0, fine[-1], max(2, round(fine[-1] * 1000.0) + 1))
+    peak = float(np.max(np.linalg.norm(turn(grid) * envelope(grid)[0][:, None], axis=1)))
+    w_scale = max_rate / peak if peak > 0 else 0.0
+    steps = exp_so3(-_magnus(fine, turn, envelope, w_scale))
+    R = np.concatenate([R0[None], ordered_products(steps) @ R0])[::fine_k]
+    env, env1, _ = envelope(t)
+    omega = turn(t) * env[:, None] * w_scale
+    omega_dot = (turn(t, 1) * env[:, None] + turn(t) * env1[:, None]) * w_scale
+    if gyro_sampling == "instant":
+        return R, omega, omega_dot, omega
+    # the mean over [t_k, t_{k+1}): trapezoid on the fine grid (the last sample: instant)
+    w_f = turn(fine) * envelope(fine)[0][:, None] * w_scale
+    seg = 0.5 * (w_f[1:] + w_f[:-1])
+    means = seg.reshape(n - 1, fine_k, 3).mean(axis=1)
+    return R, omega, omega_dot, np.vstack([means, omega[-1:]])
+
+
+def _translation(
+    t: Array,
+    rate: float,
+    fine_k: int,
+    move: _Sinusoids,
+    envelope: _Envelope,
+    translation_rms: float,
+    max_excursion: float,
+) -> tuple[Array, Array, Array]:
+    """The turning point's position, velocity and acceleration at ``t`` (world, m):
+    ``p = e(t) q(t)`` with ``q`` scaled to ``translation_rms`` while moving, shrunk to stay
+    within ``max_excursion`` of its mean."""
+    fine = np.arange((len(t) - 1) * fine_k + 1) / (rate * fine_k)
+    env_f = envelope(fine)[0]
+    moving = env_f > 0.999
+    a_f = move(fine, 2)
+    rms = float(np.sqrt(np.mean(np.sum(a_f[moving] ** 2, axis=1)))) if moving.any() else 1.0
+    scale = translation_rms / rms
+    q_f = move(fine) * env_f[:, None]
+    centre = np.mean(q_f, axis=0)
+    reach = float(np.max(np.linalg.norm(q_f - centre, axis=1))) * scale
+    if reach > max_excursion:
+        scale *= max_excursion / reach
+    e0, e1, e2 = envelope(t)
+    q0, q1, q2 = (move(t, k) * scale for k in range(3))
+    position = e0[:, None] * q0 - centre * scale
+    velocity = e1[:, None] * q0 + e0[:, None] * q1
+    acceleration = e2[:, None] * q0 + 2.0 * e1[:, None] * q1 + e0[:, None] * q2
+    return position, velocity, acceleration
+
+
+def _truth(
+    R: Array,
+    s: dict[str, Array],
+    g_world: Array,
+    h_world: Array,
+    noise: dict[str, float],
+    options: dict[str, object],
+) -> tuple[Calibration, Array]:
+    """The drawn sensors in fieldcal's gauge, and the rotation ``U`` from the drawn body frame
+    to the gauge's (``ω_gauge = U ω_drawn``)."""
+    Rc, Ka_c, Km_c, g_c, h_c = canonical_gauge(R, s["Ka"], s["Km"], g_world, h_world)
+    U = orthogonal_polar_factor(s["Ka"])
+    eye = np.eye(3)
+    truth = Calibration(
+        accel=SensorCalibration(gain=Ka_c, bias=s["ba"], noise_cov=noise["accel"] ** 2 * eye),
+        mag=SensorCalibration(gain=Km_c, bias=s["bm"], noise_cov=noise["mag"] ** 2 * eye),
+        gravity=g_c,
+        magnetic=h_c,
+        rotations=Rc,
+        method="truth",
+        gyro=SensorCalibration(
+            gain=s["Kg"] @ U.T, bias=s["bg"], noise_cov=noise["gyro"] ** 2 * eye
+        ),
+        options=options,
+    )
+    return truth, U
+
+
 def simulate_handheld(
     seed: int | None = None,
     *,
@@ -293,7 +385,6 @@ def simulate_handheld(
     fine_k = max(1, round(internal_rate / rate))
     n = max(2, round(seconds * rate))
     t = np.arange(n) / rate
-    fine = np.arange((n - 1) * fine_k + 1) / (rate * fine_k)
     s = _draw_sensors(rng, gravity, field_strength)
     dip = float(rng.uniform(*dip_deg))
     r = _lever(rng, lever_arm)
@@ -302,35 +393,12 @@ def simulate_handheld(
     move = _Sinusoids(rng, _MOVE_BAND)
     R0 = random_rotations(1, rng)[0]
 
-    # the turning rate, scaled so its peak norm is max_rate (found on a 1 kHz grid of its own,
-    # so the scale, and with it the motion, does not depend on internal_rate)
-    grid = np.linspace(0.0, fine[-1], max(2, round(fine[-1] * 1000.0) + 1))
-    peak = float(np.max(np.linalg.norm(turn(grid) * envelope(grid)[0][:, None], axis=1)))
-    env_f = envelope(fine)[0]
-    w_scale = max_rate / peak if peak > 0 else 0.0
-    steps = exp_so3(-_magnus(fine, turn, envelope, w_scale))
-    R_fine = np.concatenate([R0[None], ordered_products(steps) @ R0])
-    R = R_fine[::fine_k]
-    env, env1, _ = envelope(t)
-    omega = turn(t) * env[:, None] * w_scale
-    omega_dot = (turn(t, 1) * env[:, None] + turn(t) * env1[:, None]) * w_scale
-
-    # the hand's translation: p = e(t) q(t), scaled to translation_rms while moving, bounded
-    q_f = move(fine)
-    moving = env_f > 0.999
-    a_f = move(fine, 2)
-    rms = float(np.sqrt(np.mean(np.sum(a_f[moving] ** 2, axis=1)))) if moving.any() else 1.0
-    p_scale = translation_rms / rms
-    centre = np.mean(q_f * env_f[:, None], axis=0)
-    reach = float(np.max(np.linalg.norm(q_f * env_f[:, None] - centre, axis=1))) * p_scale
-    if reach > max_excursion:
-        p_scale *= max_excursion / reach
-    e0, e1, e2 = envelope(t)
-    q0, q1, q2 = (move(t, k) * p_scale for k in range(3))
-    position = e0[:, None] * q0 - centre * p_scale
-    velocity = e1[:, None] * q0 + e0[:, None] * q1
-    acceleration = e2[:, None] * q0 + 2.0 * e1[:, None] * q1 + e0[:, None] * q2
-
+    R, omega, omega_dot, omega_read = _turning(
+        t, rate, fine_k, turn, envelope, max_rate, R0, gyro_sampling
+    )
+    position, velocity, acceleration = _translation(
+        t, rate, fine_k, move, envelope, translation_rms, max_excursion
+    )
     # the specific force in the body frame (module docstring)
     g_world = GRAVITY * gravity
     f = (
@@ -338,13 +406,6 @@ def simulate_handheld(
         + np.cross(omega_dot, r)
         + np.cross(omega, np.cross(omega, r))
     )
-    if gyro_sampling == "instant":
-        omega_read = omega
-    else:  # the mean over [t_k, t_{k+1}): trapezoid on the fine grid (the last sample: instant)
-        w_f = turn(fine) * env_f[:, None] * w_scale
-        seg = 0.5 * (w_f[1:] + w_f[:-1])
-        means = seg.reshape(n - 1, fine_k, 3).mean(axis=1)
-        omega_read = np.vstack([means, omega[-1:]])
 
     h_world = magnetic_reference(np.radians(dip)) * field_strength
     root = np.sqrt(rate / 100.0) * noise_scale
@@ -364,19 +425,11 @@ def simulate_handheld(
         t0, t1 = temperature
         columns["temp"] = t0 + (t1 - t0) * (1.0 - np.exp(-3.0 * t / max(seconds, 1e-9)))
 
-    Rc, Ka_c, Km_c, g_c, h_c = canonical_gauge(R, s["Ka"], s["Km"], g_world, h_world)
-    U = orthogonal_polar_factor(s["Ka"])  # ω_gauge = U ω_drawn
-    truth = Calibration(
-        accel=SensorCalibration(gain=Ka_c, bias=s["ba"], noise_cov=sa**2 * np.eye(3)),
-        mag=SensorCalibration(gain=Km_c, bias=s["bm"], noise_cov=sm**2 * np.eye(3)),
-        gravity=g_c,
-        magnetic=h_c,
-        rotations=Rc,
-        method="truth",
-        gyro=SensorCalibration(gain=s["Kg"] @ U.T, bias=s["bg"], noise_cov=sg**2 * np.eye(3)),
-        options={"seed": seed, "seconds": seconds, "rate": rate},
+    noise = {"accel": sa, "mag": sm, "gyro": sg}
+    truth, U = _truth(
+        R, s, g_world, h_world, noise, {"seed": seed, "seconds": seconds, "rate": rate}
     )
-    still = env < 1e-12
+    still = envelope(t)[0] < 1e-12
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
     rest_rows = tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
     options: dict[str, object] = {
