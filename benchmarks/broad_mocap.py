@@ -239,12 +239,19 @@ def trial_row(trial: str, cal: fieldcal.Calibration, cols: dict[str, Array], qua
     ):
         e_vendor, e_ours = _rms(vendor[key]), _rms(ours[key])
         excess = float(np.sqrt(max(e_ours**2 - e_vendor**2, 0.0)))
+        if key == "tilt":  # the angle between the two calibrations' verticals
+            a_v, a_f = _unit(a), _unit(cal.correct_accel(a))
+            delta = np.degrees(np.arccos(np.clip(np.sum(a_v * a_f, axis=1), -1.0, 1.0)))
+        else:  # the two headings' difference about its mean
+            d = np.radians(ours[key] - vendor[key])
+            delta = np.degrees(np.angle(np.exp(1j * (d - np.angle(np.mean(np.exp(1j * d)))))))
         row[key] = {
             "vendor": e_vendor,
             "fieldcal": e_ours,
             "measured": excess,
             "predicted": predicted,
             "ratio": None if not predicted else excess / predicted,
+            "delta": _rms(delta),
         }
     return row
 
@@ -284,18 +291,28 @@ def report(
         "vendor's calibration). Degrees.",
         "",
         "| trial | mode, verdict | samples | tilt vendor | tilt fieldcal | tilt measured "
-        "| tilt predicted | ratio | heading vendor | heading fieldcal | heading measured "
-        "| heading predicted | ratio |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| tilt predicted | ratio | tilt Δ vendor | heading vendor | heading fieldcal "
+        "| heading measured | heading predicted | ratio | heading Δ vendor |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         cells = [r["trial"] + " " + TRIALS[r["trial"]], r["mode"], str(r["samples"])]
         for key in ("tilt", "heading"):
             d = r[key]
             cells += [_cell(d["vendor"]), _cell(d["fieldcal"]), _cell(d["measured"])]
-            cells += [_cell(d["predicted"]), _cell(d["ratio"])]
+            cells += [_cell(d["predicted"]), _cell(d["ratio"]), _cell(d["delta"])]
         lines.append("| " + " | ".join(cells) + " |")
-    lines.append("")
+    lines += [
+        "",
+        "Δ vendor: RMS of the per-sample difference between fieldcal's and the vendor's "
+        "calibration (the angle between their verticals; their headings' difference about its "
+        "mean) — no motion capture in it, so free of the lab's floor; it is fieldcal's error "
+        "where the vendor's calibration is right. Gyroscope-to-motion-capture rate residual "
+        "(alignment quality): "
+        + ", ".join(f"{r['trial']} {r['rate residual']:.3f} rad/s" for r in rows)
+        + ".",
+        "",
+    ]
     groups = ["all", *GROUPS]
     if pair is not None:
         lines += [
