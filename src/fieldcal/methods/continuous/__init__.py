@@ -31,13 +31,13 @@ from ...calibration import Calibration, Diagnostics, Reason, SensorCalibration, 
 from ...errors import InputError
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
 from .initial import start
-from .model import N_PARAMS, Data, State, accel_block, mag_block
+from .model import LEVER, Data, State, accel_of, mag_block
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
-from .uncertainty import BATCH, NAMES, kept_shares, sandwich
+from .uncertainty import BATCH, LEVER_NAMES, NAMES, kept_shares, sandwich
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
 
 __all__ = ["EPOCH_SECONDS", "MIN_SECONDS", "fit_continuous"]
@@ -54,6 +54,9 @@ PRIOR_GAIN = 0.25
 PRIOR_GYRO_GAIN = 0.06
 #: Prior standard deviation of the gyroscope's bias, rad/s.
 PRIOR_GYRO_BIAS = 0.5
+#: Prior standard deviation of each component of the lever arm, metres (Eq. C7): a hand-held
+#: device turns within about half a metre of the point it turns about (a wrist, an elbow).
+PRIOR_LEVER = 0.5
 #: The first round's gyroscope noise, as a share of its RMS rate (unless ``gyro_noise`` is
 #: given): weak, so that the field sensors lead until the factors' noise is measured.
 WEAK_GYRO = 0.02
@@ -84,7 +87,7 @@ def _weights(
     """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals, divided
     by the share of its errors the fit keeps (``kept``, :func:`.uncertainty.kept_shares`);
     the gyroscope's from ``rate_var`` (rad²/s² per axis)."""
-    ra = accel_block(state, data.accel, data.temperature).residual
+    ra = accel_of(state, data).residual
     rm = mag_block(state, data.mag, data.temperature).residual
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
@@ -133,11 +136,13 @@ def _prior(state: State) -> Prior:
             [np.pi],
             np.full(9, PRIOR_GYRO_GAIN),
             np.full(3, PRIOR_GYRO_BIAS),
+            np.full(3, PRIOR_LEVER),
         ]
     )
-    mean = state.vector()[:N_PARAMS]
+    mean = state.vector()[: LEVER.stop]
     mean[22:31] = np.eye(3).ravel()
     mean[31:34] = 0.0
+    mean[LEVER] = 0.0
     return Prior(mean, 1.0 / std**2)
 
 
@@ -429,7 +434,7 @@ def _fit(
             state, w, levels, more, converged = again(state, prior=_prior(first))
             total += more
     state = _canonical(state)
-    ra = accel_block(state, data.accel, data.temperature).residual
+    ra = accel_of(state, data).residual
     rm = mag_block(state, data.mag, data.temperature).residual
     f = state_factors(state, data)
     cov, crb, _ = sandwich(state, data, w, batch)
@@ -484,6 +489,10 @@ def _fit(
             "relative_std": check.relative_std,
             "advice": check.advice,
             "unsettled": check.unsettled,
+        },
+        "lever_arm": {
+            "metres": [float(x) for x in state.lever],
+            "std_m": [float(x) for x in cov.stds(list(LEVER_NAMES))],
         },
         "epoch_seconds": float(step / rate),
         "epoch_step": int(step),

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cholesky_banded
 from scipy.linalg.lapack import dtbtrs
 
-from .model import Data, State, accel_block, columns, mag_block
+from .model import Data, State, accel_block, accel_columns, columns, mag_block
 from .preintegration import GyroFactors, thermal_factors
 
 __all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
@@ -92,8 +92,14 @@ def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
         data.gyro[lo:stop],
         data.hold,
         None if data.temperature is None else data.temperature[lo:stop],
+        None if data.gyro_slope is None else data.gyro_slope[lo:stop],
     )
     return sub, part
+
+
+def _slope(data: Data) -> Array:
+    assert data.gyro_slope is not None  # Data computes it
+    return data.gyro_slope
 
 
 def cost(state: State, data: Data, w: Weights) -> float:
@@ -105,7 +111,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
         m = hi - lo
         sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
         d = None if part.temperature is None else part.temperature[:m]
-        ra = accel_block(sub_m, part.accel[:m], d).residual
+        ra = accel_block(sub_m, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]).residual
         rm = mag_block(sub_m, part.mag[:m], d).residual
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
@@ -164,7 +170,11 @@ def _assemble(
     own = dataclasses.replace(sub, rotations=sub.rotations[:m])
     d = None if part.temperature is None else part.temperature[:m]
     for block, weight, sl in (
-        (accel_block(own, part.accel[:m], d), w.accel[lo:hi], columns(sub, "accel")),
+        (
+            accel_block(own, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]),
+            w.accel[lo:hi],
+            accel_columns(sub),
+        ),
         (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual

@@ -43,7 +43,8 @@ from .model import (
     Blocks,
     Data,
     State,
-    accel_block,
+    accel_columns,
+    accel_of,
     columns,
     mag_block,
 )
@@ -52,6 +53,7 @@ from .solver import Normal, Weights, normal_equations, schur, state_factors
 
 __all__ = [
     "BATCH",
+    "LEVER_NAMES",
     "NAMES",
     "covariance",
     "information",
@@ -80,6 +82,16 @@ def _names(sensor: str) -> list[str]:
 NAMES: tuple[str, ...] = (*_names("accel"), *_names("mag"), "dip_deg", *_names("gyro"))
 
 
+#: Covariance names of the lever arm (metres, :data:`.model.LEVER`), after :data:`NAMES`.
+LEVER_NAMES: tuple[str, ...] = tuple(f"lever_arm_m[{i}]" for i in range(3))
+
+
+def _extra(state: State) -> tuple[str, ...]:
+    """The covariance's names past :data:`NAMES`: the lever arm's, then the temperature
+    coefficients' (the parameter vector's order)."""
+    return (*LEVER_NAMES, *temperature_labels(state))
+
+
 def temperature_labels(state: State) -> list[str]:
     """Covariance names of the temperature coefficients, in the parameter vector's order
     (``<sensor>.temp[k,j]``, :func:`fieldcal.thermal.temperature_names`)."""
@@ -92,8 +104,8 @@ def temperature_labels(state: State) -> list[str]:
 
 
 def _to_names(extra: int = 0) -> Array:
-    """``T`` with ``named = T @ p`` (37 × 34, plus ``extra`` temperature coefficients mapped
-    to themselves) for the perturbations of the parameters."""
+    """``T`` with ``named = T @ p`` (37 × 34, plus ``extra`` parameters — the lever arm, the
+    temperature coefficients — mapped to themselves) for the perturbations of the parameters."""
     T = np.zeros((len(NAMES) + extra, N_PARAMS + extra))
     T[len(NAMES) :, N_PARAMS:] = np.eye(extra)
     for k, (r, c) in enumerate(SYM):
@@ -126,7 +138,7 @@ def _named(C: Array, extra: tuple[str, ...] = ()) -> ParameterCovariance:
 def covariance(state: State, data: Data, w: Weights) -> tuple[ParameterCovariance, Array]:
     """The named Cramér–Rao covariance (``NAMES``, Eq. C8) and the information it inverts."""
     S = information(state, data, w)
-    return _named(_invert(S), tuple(temperature_labels(state))), S
+    return _named(_invert(S), _extra(state)), S
 
 
 @dataclass
@@ -144,9 +156,10 @@ class _Jacobians:
 def _jacobians(state: State, data: Data) -> _Jacobians:
     d = data.temperature
     f = state_factors(state, data)
-    cols = {s: columns(state, s) for s in ("accel", "mag", "gyro")}
+    cols = {s: columns(state, s) for s in ("mag", "gyro")}
+    cols["accel"] = accel_columns(state)
     return _Jacobians(
-        accel_block(state, data.accel, d),
+        accel_of(state, data),
         mag_block(state, data.mag, d),
         f,
         cols,
@@ -332,5 +345,5 @@ def sandwich(
     if w.prior is not None:
         m = len(w.prior.precision)
         C += Sinv[:, :m] @ np.diag(w.prior.precision) @ Sinv[:m, :]
-    extra = tuple(temperature_labels(state))
+    extra = _extra(state)
     return _named(0.5 * (C + C.T), extra), _named(Sinv, extra), S
