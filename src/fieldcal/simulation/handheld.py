@@ -137,7 +137,7 @@ class HandheldLog:
 
 class _Sinusoids:
     """A smooth random 3-vector signal ``Σ_k a_k sin(2π f_k t + φ_k)`` per axis, with exact
-    derivatives (order 0, 1, 2) and exact interval means."""
+    derivatives (order 0, 1, 2)."""
 
     def __init__(self, rng: np.random.Generator, band: tuple[float, float]) -> None:
         self.f = rng.uniform(*band, (_TERMS, 3))
