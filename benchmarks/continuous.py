@@ -334,10 +334,10 @@ def hhs(n_sets: int, **fit_options: object) -> dict[str, dict[str, float]]:
     for _ in range(n_sets):
         t, a, m, g, truth = _hhs_log(rng)
         samples = len(t)
-        start = time.perf_counter()
+        start = time.process_time()
         options = {"hold": "previous", "gyro_noise": 8.7e-4 * np.sqrt(80.0), **fit_options}
         cal = fit_continuous(t, a, m, g, **options)  # type: ignore[arg-type]
-        times.append(time.perf_counter() - start)
+        times.append(time.process_time() - start)
         cal = cal.with_field_magnitudes(9.8, None)
         found = {
             "D": np.asarray(cal.mag.gain),
@@ -355,7 +355,7 @@ def hhs(n_sets: int, **fit_options: object) -> dict[str, dict[str, float]]:
         }
         for k, v in err.items()
     }
-    out["time"] = {"seconds per dataset (median)": float(np.median(times))}
+    out["time"] = {"CPU seconds per dataset (median)": float(np.median(times))}
     out["time"]["samples per dataset"] = float(samples)
     return out
 
@@ -379,7 +379,7 @@ def hhs_lines(n_sets: int, h: dict[str, dict[str, float]], note: str = "") -> li
         part.append(f"| {k} ({units[k]}) | {h[k]['theirs']:.4g} | {h[k]['per entry']:.4g} |")
     part += [
         "",
-        f"Median {h['time']['seconds per dataset (median)']:.2f} s per dataset of "
+        f"Median {h['time']['CPU seconds per dataset (median)']:.2f} s CPU per dataset of "
         f"{h['time']['samples per dataset']:.0f} samples.",
     ]
     return part
