@@ -377,15 +377,9 @@ def run_log(
                 "poses='auto': calibrated from continuous motion, not from rests (still "
                 f"detection: {why}); the log has a gyroscope and time"
             )
-            run = _run_continuous(log, P, settings, notes, on_progress)
-            if not run.calibration.converged:
-                # a log of a few rests the estimator cannot follow between them: what the
-                # user can act on is the rests' advice, not an estimate that never settled
-                raise InputError(
-                    f"{exc}; calibrating from the continuous motion instead (the log has a "
-                    "gyroscope and time) did not converge either"
-                ) from None
-            return run
+            # a fit that did not converge is still written, its verdict fail with the causes
+            # the continuous rules name (docs/methods/continuous.md)
+            return _run_continuous(log, P, settings, notes, on_progress)
         if poses == "auto":
             notes.append(f"poses='auto': calibrated from {found.n} rests found by still detection")
     if P is not None and found.mag is not None:

@@ -181,8 +181,10 @@ def _certificate_line(cal: Calibration) -> str | None:
     diag = cal.diagnostics
     if diag is None:
         return None
+    # the continuous fit's noise levels are its residuals' too (per stretch): not a test either
     from_residuals = any(
-        s is not None and s.noise_source == "residuals" for s in (cal.accel, cal.mag)
+        s is not None and s.noise_source.startswith(("residuals", "continuous residuals"))
+        for s in (cal.accel, cal.mag)
     )
     if from_residuals:
         reading = "not a test: the noise was estimated from these residuals"

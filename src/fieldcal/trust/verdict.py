@@ -180,6 +180,45 @@ RULES: dict[str, tuple[str, str]] = {
         "{dropped} of {total} data lines ({share:.1%}) were dropped as unreadable ({which}); "
         "the samples between are missing: check the cable, the baud rate and that the device "
         "writes whole lines",
+    ),  # continuous logs (fieldcal.trust.continuous_motion): gyroscope, field, turns
+    "continuous_field_disturbed": (
+        "fail",
+        "the calibrated magnetic field's strength varies by {strength:.1%} RMS over the log "
+        "(more than {limit:.0%}; dip spread {dip:.1f}° over {stretch:g}-s stretches): a "
+        "magnet or iron that moves relative to the sensor, or a disturbed site; move away from "
+        "the magnet (fix it rigidly or remove it) and record again",
+    ),
+    "gyro_units": (
+        "fail",
+        "the gyroscope's rates are {ratio:.3g}x the turning the magnetometer's direction shows "
+        "(about 1 for rad/s, 57 for °/s): give the gyroscope in rad/s (°/s x 0.01745)",
+    ),
+    "gyro_gain_sign": (
+        "fail",
+        "the gyroscope's {axes} ax{plural} turned against the field sensors (gain {values}): "
+        "an axis sign or mapping is wrong; check the gyroscope's columns and axis signs",
+    ),
+    "gyro_gain_scale": (
+        "fail",
+        "the gyroscope's scale came out {scale:.3g} (more than {limit:.0%} off 1 for rates in "
+        "rad/s): check its units (rad/s) and columns",
+    ),
+    "gyro_misalignment": (
+        "warn",
+        "the gyroscope's {axis} axis is {angle:.2g} ± {std:.2g}° off the accelerometer's (more "
+        "than {limit:g}°): mounted askew or a cross-axis error; check the axis mapping, or "
+        "apply the fitted gain",
+    ),
+    "gyro_undetermined": (
+        "note",
+        "the log cannot determine the gyroscope's {axis} axis alignment to better than "
+        "{std:.2g}° (1σ): turn about {axis} at a steady rate, then about the other axes",
+    ),
+    "continuous_fast_turns": (
+        "warn",
+        "the turns reach {rate:.3g} rad/s ({step:.2g} rad per sample{clipped}): the lever arm "
+        "and the hand's translation grow with the rate and a sampled turn loses accuracy; "
+        "slower turns",
     ),
 }
 

@@ -32,6 +32,7 @@ from ...errors import InputError
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
 from .initial import start
 from .model import LEVER, Data, State, accel_of, mag_block
+from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
@@ -211,7 +212,8 @@ def _verdict(
                 "continuous_disturbed",
                 "note",
                 f"{disturbed_s:.3g} s of {trajectory['duration_s']:.3g} s were down-weighted for "
-                "body acceleration; turn the device about its centre rather than waving it",
+                "body acceleration (the hand's translation, beyond the lever arm's share); "
+                "slower, smoother turns with less travel of the hand",
             )
         )
     levels_seen = {r.level for r in reasons}
@@ -494,6 +496,10 @@ def _fit(
             "metres": [float(x) for x in state.lever],
             "std_m": [float(x) for x in cov.stds(list(LEVER_NAMES))],
         },
+        "gyro_check": gyro_check(state.gyro_gain, cov),
+        "gyro_units_ratio": gyro_units_ratio(t, data.mag, g),
+        "field_check": field_check(state, data, length),
+        "turn_check": turn_check(t, f.rates, g),
         "epoch_seconds": float(step / rate),
         "epoch_step": int(step),
         "hold": hold,
