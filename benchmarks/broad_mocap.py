@@ -271,6 +271,10 @@ def fast_trial(cal: fieldcal.Calibration) -> dict[str, object]:
         Kg = np.asarray(cal.gyro.gain)
         out["gyro misalignment deg"] = float(rotation_angle_deg(orthogonal_polar_factor(Kg)))
         out["gyro scale error %"] = list(100 * (np.linalg.svd(Kg, compute_uv=False) - 1.0))
+        # each row's off-diagonal terms as angles: how far an axis leans towards another
+        rows = Kg / np.linalg.norm(Kg, axis=1, keepdims=True)
+        lean = np.degrees(np.arcsin(np.abs(rows - np.diag(np.diag(rows)))))
+        out["gyro largest cross-axis term deg"] = float(lean.max())
     return out
 
 
