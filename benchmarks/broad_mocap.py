@@ -95,6 +95,7 @@ GROUPS = {
     "dip": "dip_deg",
     "gyro gain": "gyro.gain",
     "gyro bias": "gyro.bias",
+    "lever arm": "lever_arm_m",
 }
 #: Quasi-static samples: gyroscope rate (rad/s) and |a| − g (m/s²) below these.
 STILL_RATE, STILL_ACCEL = 0.5, 0.3
@@ -191,6 +192,13 @@ def values(cal: fieldcal.Calibration) -> dict[str, tuple[float, float]]:
     for name, sd in zip(cov.names, cov.stds(list(cov.names)), strict=True):
         if name == "dip_deg":
             out[name] = (float(cal.dip_deg or 0.0), float(sd))
+            continue
+        if name.startswith("lever_arm_m["):  # the continuous fit's lever arm (issue 33)
+            arm = cal.options.get("lever_arm")
+            if isinstance(arm, dict) and "metres" in arm:
+                out[name] = (float(arm["metres"][int(name[-2])]), float(sd))
+            continue
+        if "." not in name:
             continue
         sensor, rest = name.split(".", 1)
         block = getattr(cal, sensor, None)

@@ -80,11 +80,12 @@ def one_log(k: int, poses: str, seconds: float) -> dict[str, object]:
         out[f"{s} gain %"] = 100 * float(np.max(np.abs(K_est - K_true))) / scale
         zb = [abs(out["z"][f"{s}.bias[{i}]"]) for i in range(3) if f"{s}.bias[{i}]" in out["z"]]
         out[f"{s} bias se"] = max(zb) if zb else np.nan
-    arm = cal.options.get("lever_arm")
-    if isinstance(arm, dict) and "value" in arm:
-        out["lever arm error cm"] = 100 * float(
-            np.linalg.norm(np.asarray(arm["value"]) - log.lever_arm_gauge)
-        )
+    arm = cal.options.get("lever_arm")  # the continuous fit's lever arm (issue 33), if any
+    if isinstance(arm, dict) and "metres" in arm:
+        error = np.asarray(arm["metres"]) - log.lever_arm_gauge
+        out["lever arm error cm"] = 100 * float(np.linalg.norm(error))
+        sd = np.asarray(arm.get("std_m", [np.nan] * 3), dtype=float)
+        out["z"].update({f"lever_arm_m[{i}]": error[i] / sd[i] for i in range(3) if sd[i] > 0})
     return out
 
 
@@ -113,7 +114,8 @@ def summarise(results: list[dict[str, object]]) -> list[str]:
         )
     lines += ["", "| group | RMS z | coverage of 95 % intervals |", "|---|---:|---:|"]
     everything: list[float] = []
-    for group, names in GROUPS.items():
+    groups = {**GROUPS, "lever arm": [f"lever_arm_m[{i}]" for i in range(3)]}
+    for group, names in groups.items():
         z = np.array([r["z"][n] for r in kept for n in names if n in r["z"]])  # type: ignore[index]
         if len(z):
             everything += list(z)
