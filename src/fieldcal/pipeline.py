@@ -78,6 +78,10 @@ CONTINUOUS_OPTIONS = (
     "date",
     "dip_allowance_deg",
     "targets",
+    "gyro_sampling",
+    "gyro_noise",
+    "hold",
+    "prior",
     *TARGET_OPTIONS,
 )
 #: Fit options :func:`run_log` itself reads, whatever estimator it runs.
@@ -552,6 +556,10 @@ def _run_continuous(
             gravity=gravity,
             on_progress=on_progress,
             temperature=log.temperature,
+            gyro_sampling=fit.gyro_sampling,
+            gyro_noise=fit.gyro_noise,
+            hold=fit.hold,
+            prior=fit.prior,
         )
     except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
         raise InputError(

@@ -525,6 +525,43 @@ class FitSettings:
             valid="flag",
         ),
     )
+    gyro_sampling: str = field(
+        default="auto",
+        metadata=meta(
+            "--gyro-sampling",
+            "Continuous motion: a gyroscope reading is the rate at its instant, or the mean "
+            "rate over the interval that follows it; auto detects it from the data (noted).",
+            valid=("auto", "instant", "mean"),
+            show_default=True,
+        ),
+    )
+    gyro_noise: float | None = field(
+        default=None,
+        metadata=meta(
+            "--gyro-noise",
+            "Continuous motion: the gyroscope's white noise per sample, rad/s (default: "
+            "estimated from the rates' second differences; give it when the rate jitters).",
+            unit="rad/s",
+            valid=MAGNITUDE,
+        ),
+    )
+    hold: str | None = field(
+        default=None,
+        metadata=meta(
+            "--hold",
+            "Continuous motion: blocks held at --prior's values, comma-separated: gyro.gain, "
+            "gyro.bias, accel.bias, mag.bias.",
+            metavar="BLOCKS",
+        ),
+    )
+    prior: str | None = field(
+        default=None,
+        metadata=meta(
+            "--prior",
+            "The earlier calibration file (cal.json) that --hold takes its values from.",
+            metavar="CAL.JSON",
+        ),
+    )
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,15 @@ class Prior:
 
     mean: Array
     precision: Array
+    #: Parameters held fixed (:mod:`.held_blocks`): the step leaves them where they are.
+    fixed: NDArray[np.bool_] | None = None
+
+    def free(self, size: int) -> NDArray[np.bool_]:
+        """Which of ``size`` parameters the fit moves (those past ``mean`` always)."""
+        out = np.ones(size, dtype=bool)
+        if self.fixed is not None:
+            out[: len(self.fixed)] = ~self.fixed
+        return out
 
     def cost(self, p: Array) -> float:
         """Half the prior's χ² (temperature coefficients past ``mean`` carry no prior)."""
@@ -253,9 +262,11 @@ def schur(normal: Normal, damping: float = 0.0) -> tuple[Array, Array, Array, Ar
     return 0.5 * (S + S.T), g, Z[:, :size], Z[:, size]
 
 
-def _step(normal: Normal, damping: float) -> tuple[Array, Array]:
+def _step(normal: Normal, damping: float, free: NDArray[np.bool_]) -> tuple[Array, Array]:
     S, g, W, z = schur(normal, damping)
-    dp = np.linalg.solve(S + 1e-14 * np.trace(S) * np.eye(len(S)), g)
+    Sf = S[np.ix_(free, free)]
+    dp = np.zeros(len(S))
+    dp[free] = np.linalg.solve(Sf + 1e-14 * np.trace(Sf) * np.eye(len(Sf)), g[free])
     x, info = dtbtrs(normal.factor, (z - W @ dp)[:, None], uplo="L", trans="T")
     if info != 0:
         raise np.linalg.LinAlgError(f"banded triangular solve failed (info {info})")
@@ -273,9 +284,11 @@ def levenberg_marquardt(
     stops when the steps are a twentieth of the error bars or less."""
     damping = 1e-8
     normal = normal_equations(state, data, w)
+    size = len(state.vector())
+    free = np.ones(size, dtype=bool) if w.prior is None else w.prior.free(size)
     for it in range(1, max_iter + 1):
         try:
-            dp, dt = _step(normal, damping)
+            dp, dt = _step(normal, damping, free)
         except np.linalg.LinAlgError:
             damping *= 10.0
             continue
