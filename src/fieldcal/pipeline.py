@@ -376,7 +376,8 @@ def run_log(
         except InputError as exc:
             if poses != "auto" or why_not is not None:
                 raise
-            why = "its rests move" if MOVING_RESTS in str(exc) else str(exc)
+            # what the rests lack, without their advice ("hold still"): the motion is used
+            why = "its rests move" if MOVING_RESTS in str(exc) else str(exc).split(": ")[0]
             notes.append(
                 "poses='auto': calibrated from continuous motion, not from rests (still "
                 f"detection: {why}); the log has a gyroscope and time"
