@@ -9,10 +9,12 @@ must tell one mistake from another reads :attr:`InputError.code`, never the mess
 from __future__ import annotations
 
 __all__ = [
+    "GYRO_UNIT",
     "MOVING_RESTS",
     "NOT_A_SENSOR",
     "NO_STILL",
     "SHORT_LOG",
+    "WRONG_RATE",
     "InputError",
     "MovingRestsWarning",
 ]
@@ -25,6 +27,10 @@ MOVING_RESTS = "moving_rests"
 #: :attr:`InputError.code` of a log shorter than one still-detection window (a log of shots, one
 #: row per pose: the pipeline then asks for its pose column).
 SHORT_LOG = "short_log"
+#: :attr:`InputError.code` of a gyroscope whose integrated turn contradicts the field sensors'
+#: by its unit (deg/s for rad/s), and of a ``--rate`` that contradicts the log.
+GYRO_UNIT = "gyro_unit"
+WRONG_RATE = "wrong_rate"
 #: :attr:`InputError.code` of a per-sensor option that names something other than a sensor.
 NOT_A_SENSOR = "not_a_sensor"
 

@@ -95,6 +95,20 @@ class MotionFindings:
         recording).
     disturbed_seconds, duration_seconds : float
         Seconds down-weighted for body acceleration, of the log's duration.
+    field_strength_rms : float
+        The calibrated field's strength, RMS relative departure from 1 (a magnet that moves
+        with the device but not rigidly, iron passed near it).
+    dip_spread_deg : float
+        The dip's spread over the estimator's stretches where the accelerometer reads gravity.
+    gyro_units_ratio : float or None
+        The raw rates' turning over the magnetometer direction's own (about 1 in rad/s, 57 in
+        °/s); ``None`` when the field direction barely turned.
+    turn_step_rad : float
+        The largest turns per sample (99th percentile of ``|ω| Δt``).
+    max_rate : float
+        The largest rate, rad/s.
+    clipped_axes : tuple of int
+        Gyroscope axes at their range on more than 0.5 % of the samples.
     """
 
     undetermined: tuple[str, ...] = ()
@@ -102,6 +116,12 @@ class MotionFindings:
     unsettled: tuple[str, ...] = ()
     disturbed_seconds: float = 0.0
     duration_seconds: float = 0.0
+    field_strength_rms: float = 0.0
+    dip_spread_deg: float = 0.0
+    gyro_units_ratio: float | None = None
+    turn_step_rad: float = 0.0
+    max_rate: float = 0.0
+    clipped_axes: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from .api import calibrate_with, check_targets, field_settings, targets_for
 from .calibration import Calibration
-from .errors import MOVING_RESTS, NO_STILL, InputError, MovingRestsWarning
+from .errors import MOVING_RESTS, NO_STILL, WRONG_RATE, InputError, MovingRestsWarning
 from .findings import TemperatureIgnored
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .gyro.integrate import effective_time
@@ -371,8 +371,10 @@ def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> tuple[_J
     _check_choice("accel_sign (--accel-sign)", fit.accel_sign, ACCEL_SIGNS)
     notes, P = _input_notes(log, fit.mag_axes, fit.accel_sign)
     log, gyro_scale, problem = _gyro_in_rad_s(log, fit.gyro_unit, detect.rate, fit.gyro, notes)
-    if problem is not None and (detect.rate is not None or mode == "continuous"):
-        raise InputError(problem)
+    # a wrong rate misleads every path; a unit only the continuous one (the poses' gyroscope
+    # fit absorbs it into the gain)
+    if problem is not None and (problem.code == WRONG_RATE or mode == "continuous"):
+        raise problem
     notes = [*located, *notes]
     tuned = [name for name in _STILL_OPTIONS if getattr(detect, name) is not None]
     if mode == "auto" and tuned:
@@ -388,12 +390,13 @@ def _prepare(log: Log, settings: LogSettings, found: PoseSet | None) -> tuple[_J
     reference, magnitudes = field_settings(fit, settings.trust)
     targets = targets_for(settings.targets, settings.trust)
     job = _Job(settings, found, mode, why_not, tuple(notes), P, reference, magnitudes, targets)
-    return dataclasses.replace(job, gyro_scale=gyro_scale, gyro_problem=problem), log
+    gyro_problem = None if problem is None else str(problem)
+    return dataclasses.replace(job, gyro_scale=gyro_scale, gyro_problem=gyro_problem), log
 
 
 def _gyro_in_rad_s(
     log: Log, unit: str | None, rate: float | None, gyro: bool | None, notes: list[str]
-) -> tuple[Log, float, str | None]:
+) -> tuple[Log, float, InputError | None]:
     """The log with its gyroscope in rad/s (``--gyro-unit``), the factor applied, and what
     the gyroscope's integrated turn against the other sensors' says is wrong (a unit or a rate
     that contradicts the log; :func:`~fieldcal.gyro.scale.gyro_scale_problem`)."""
@@ -503,6 +506,9 @@ def _run_poses(
         found = dataclasses.replace(found, accel=[-a for a in found.accel])
         checked = False
     notes.append(_how_found(log, found))
+    unused = _unused(settings, "poses")
+    if unused:
+        notes.append(f"not used by a fit from poses: {', '.join(unused)}")
     if not checked:
         _check_poses(found, fit.method, log, rate, detection)
     if on_progress is not None:
@@ -611,12 +617,14 @@ def _why_not_continuous(log: Log, rate: float | None, gyro: bool | None) -> str 
     return None
 
 
-def _unused_by_continuous(settings: LogSettings) -> list[str]:
-    """The options given that the continuous path does not read (``Option.paths``), and the
-    pose method's own options."""
+def _unused(settings: LogSettings, path: str) -> list[str]:
+    """The options given that the estimation ``path`` does not read (``Option.paths``), and
+    for the continuous path the pose method's own options."""
     given = {**changed(settings.fit), **changed(settings.trust)}
-    unused = [k for k in given if "continuous" not in OPTIONS[k].paths]
-    unused += [k for k, v in settings.method_options.items() if v is not None and v is not False]
+    unused = [k for k in given if path not in OPTIONS[k].paths]
+    if path == "continuous":
+        own = settings.method_options.items()
+        unused += [k for k, v in own if v is not None and v is not False]
     return sorted(unused)
 
 
@@ -638,7 +646,7 @@ def _run_continuous(
         time = effective_time(log.time)
     else:
         time = np.arange(log.n) / float(rate or log.rate)  # type: ignore[arg-type]
-    unused = _unused_by_continuous(settings)
+    unused = _unused(settings, "continuous")
     if unused:
         notes.append(f"not used by the continuous estimator: {', '.join(unused)}")
     accel = -log.accel if fit.accel_sign == "gravity" else log.accel
@@ -655,6 +663,10 @@ def _run_continuous(
             gravity=gravity,
             on_progress=on_progress,
             temperature=log.temperature,
+            gyro_sampling=fit.gyro_sampling,
+            gyro_noise=fit.gyro_noise,
+            hold=fit.hold,
+            prior=fit.prior,
         )
     except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
         raise InputError(

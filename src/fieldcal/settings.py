@@ -44,6 +44,7 @@ from .reference import DIP_ALLOWANCE_DEG
 
 __all__ = [
     "BODY_FRAMES",
+    "CONTINUOUS_ONLY",
     "DEFAULT_METHOD",
     "ESTIMATION_PATHS",
     "MAGNITUDE",
@@ -90,6 +91,8 @@ DEFAULT_METHOD = "mle"
 ESTIMATION_PATHS = ("poses", "continuous")
 #: ``Option.paths`` of an option that only the pose methods read.
 POSES_ONLY = ("poses",)
+#: ``Option.paths`` of an option that only the continuous-motion estimator reads.
+CONTINUOUS_ONLY = ("continuous",)
 POSE_CHOICES = ("auto", "still", "windows", "samples", "continuous")
 #: ``body_frame``: the sensor whose gain is made symmetric (Sec. 4.3).
 BODY_FRAMES = ("accel", "mag")
@@ -635,6 +638,47 @@ class FitSettings:
             "The magnetometer's axes (after --mag-axes) are left-handed relative to the "
             "accelerometer's; static data cannot tell this from the dip's sign.",
             valid="flag",
+        ),
+    )
+    gyro_sampling: str = field(
+        default="auto",
+        metadata=meta(
+            "--gyro-sampling",
+            "Continuous motion: a gyroscope reading is the rate at its instant, or the mean "
+            "rate over the interval that follows it; auto detects it from the data (noted).",
+            valid=("auto", "instant", "mean"),
+            show_default=True,
+            paths=CONTINUOUS_ONLY,
+        ),
+    )
+    gyro_noise: float | None = field(
+        default=None,
+        metadata=meta(
+            "--gyro-noise",
+            "Continuous motion: the gyroscope's white noise per sample, rad/s (default: "
+            "estimated from the rates' second differences; give it when the rate jitters).",
+            unit="rad/s",
+            valid=MAGNITUDE,
+            paths=CONTINUOUS_ONLY,
+        ),
+    )
+    hold: str | None = field(
+        default=None,
+        metadata=meta(
+            "--hold",
+            "Continuous motion: blocks held at --prior's values, comma-separated: gyro.gain, "
+            "gyro.bias, accel.bias, mag.bias.",
+            metavar="BLOCKS",
+            paths=CONTINUOUS_ONLY,
+        ),
+    )
+    prior: str | None = field(
+        default=None,
+        metadata=meta(
+            "--prior",
+            "The earlier calibration file (cal.json) that --hold takes its values from.",
+            metavar="CAL.JSON",
+            paths=CONTINUOUS_ONLY,
         ),
     )
 

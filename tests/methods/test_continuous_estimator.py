@@ -12,7 +12,14 @@ import pytest
 from fieldcal.errors import InputError
 from fieldcal.geometry.rotations import rotation_angle_deg
 from fieldcal.methods.continuous import fit_continuous
-from fieldcal.methods.continuous.model import Data, State, accel_block, mag_block
+from fieldcal.methods.continuous.model import (
+    Data,
+    State,
+    accel_block,
+    accel_columns,
+    mag_block,
+    rate_slope,
+)
 from fieldcal.methods.continuous.preintegration import gyro_factors
 from fieldcal.methods.continuous.uncertainty import NAMES
 from fieldcal.methods.continuous.weights import STRETCH
@@ -130,7 +137,7 @@ def test_jacobians_match_finite_differences():
     for fn, y, sl in ((accel_block, a, slice(0, 9)), (mag_block, m, slice(9, 22))):
         base = fn(state, y)
         for k in rng.choice(sl.stop - sl.start, 4, replace=False):
-            dp = np.zeros(34)
+            dp = np.zeros(len(state.vector()))  # 34 and the lever arm
             dp[sl.start + k] = eps
             moved = fn(state.updated(dp, np.zeros((40, 3))), y)
             numeric = (base.residual - moved.residual) / eps
@@ -138,17 +145,51 @@ def test_jacobians_match_finite_differences():
             assert np.abs(numeric - base.params[:, :, k]).max() < 1e-4 * scale
         dR = np.zeros((40, 3))
         dR[:, 1] = eps
-        numeric = (base.residual - fn(state.updated(np.zeros(34), dR), y).residual) / eps
+        numeric = (
+            base.residual - fn(state.updated(np.zeros(len(state.vector())), dR), y).residual
+        ) / eps
         assert np.allclose(numeric, base.rotation[:, :, 1], atol=1e-4 * np.abs(base.rotation).max())
     f = gyro_factors(R, t, g, state.gyro_gain, state.gyro_bias)
     for k in (0, 4, 10):
-        dp = np.zeros(34)
+        dp = np.zeros(len(state.vector()))  # 34 and the lever arm
         dp[22 + k] = eps
         moved = state.updated(dp, np.zeros((40, 3)))
         f2 = gyro_factors(R, t, g, moved.gyro_gain, moved.gyro_bias)
         numeric = (f.residual - f2.residual) / eps
         assert np.abs(numeric - f.params[:, :, k]).max() < 1e-3 * np.abs(f.params[:, :, k]).max()
     assert data.time is t
+
+
+def test_lever_arm_jacobians_match_finite_differences():
+    """Eq. C1a–C1b: the accelerometer's prediction with a lever arm, differentiated
+    numerically in every column it reaches (its own, the lever arm's, the gyroscope's)."""
+    rng = np.random.default_rng(4)
+    log = simulate_handwave(seed=3, seconds=6.0)
+    a, g = (_columns(log, p)[:60] for p in "ag")
+    t = log.columns["t"][:60]
+    state = State(
+        np.array(log.truth.accel.gain),
+        np.array(log.truth.accel.bias),
+        np.array(log.truth.mag.gain),
+        np.array(log.truth.mag.bias),
+        0.4,
+        np.eye(3) + 0.02 * rng.standard_normal((3, 3)),
+        0.05 * rng.standard_normal(3),
+        np.asarray(log.truth.rotations)[:60],
+        lever=np.array([0.06, -0.11, 0.08]),
+    )
+    slope = rate_slope(t, g) + 20.0 * rng.standard_normal((60, 3))
+    base = accel_block(state, a, None, g, slope)
+    cols = accel_columns(state)
+    assert base.params.shape[2] == len(cols)
+    eps = 1e-7
+    for k, c in enumerate(cols):
+        dp = np.zeros(len(state.vector()))
+        dp[c] = eps
+        moved = accel_block(state.updated(dp, np.zeros((60, 3))), a, None, g, slope)
+        numeric = (base.residual - moved.residual) / eps
+        scale = np.abs(base.params[:, :, k]).max() + 1e-9
+        assert np.abs(numeric - base.params[:, :, k]).max() < 1e-4 * scale, c
 
 
 def test_refuses_short_or_unordered_logs():

@@ -15,7 +15,7 @@ from fieldcal.geometry.rotations import exp_so3
 from fieldcal.methods.continuous import fit_continuous
 from fieldcal.methods.continuous.model import Data, State, accel_block, mag_block
 from fieldcal.methods.continuous.preintegration import thermal_factors
-from fieldcal.methods.continuous.uncertainty import NAMES
+from fieldcal.methods.continuous.uncertainty import LEVER_NAMES, NAMES
 from fieldcal.simulation.handwave import simulate_handwave
 from fieldcal.trust.continuous_motion import trust_continuous
 
@@ -70,7 +70,7 @@ def test_no_drift_selects_no_terms():
     for sensor in ("accel", "mag", "gyro"):
         model = getattr(cal, sensor).temperature
         assert model.order == 0 and not model.refused
-    assert tuple(cal.covariance.names) == NAMES
+    assert tuple(cal.covariance.names) == (*NAMES, *LEVER_NAMES)  # no temperature terms
 
 
 def test_small_span_refused_with_one_line():
@@ -88,7 +88,7 @@ def test_without_temperature_no_terms():
     cal = _fit(log)
     assert "temperature" not in cal.options
     assert cal.accel.temperature is None and cal.gyro.temperature is None
-    assert tuple(cal.covariance.names) == NAMES
+    assert tuple(cal.covariance.names) == (*NAMES, *LEVER_NAMES)  # no temperature terms
 
 
 def test_temperature_jacobians_match_finite_differences():

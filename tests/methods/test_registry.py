@@ -51,7 +51,9 @@ def test_an_estimator_reads_the_options_of_its_path():
 
 def test_the_continuous_path_notes_each_option_it_does_not_read():
     settings = pipeline.LogSettings.of(robust=False, pose_noise="none", gravity=9.80665)
-    assert pipeline._unused_by_continuous(settings) == ["pose_noise", "robust"]
+    assert pipeline._unused(settings, "continuous") == ["pose_noise", "robust"]
+    held = pipeline.LogSettings.of(gyro_sampling="mean", robust=False)
+    assert pipeline._unused(held, "poses") == ["gyro_sampling"]
 
 
 def test_the_continuous_estimator_returns_findings_and_no_verdict():

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
+from ..errors import GYRO_UNIT, WRONG_RATE, InputError
 
 __all__ = [
     "DEG_PER_RAD",
@@ -176,7 +176,7 @@ def gyro_scale_problem(
     rate: float | None,
     has_time: bool,
     unit: str | float | None,
-) -> str | None:
+) -> InputError | None:
     """What is wrong when the gyroscope's integrated turn disagrees with the field sensors' by
     more than a factor of three, naming the likely mistake: a gyroscope in deg/s
     (``--gyro-unit``), a ``--rate`` that contradicts the log, or a unit to give; ``None`` when
@@ -201,20 +201,23 @@ def gyro_scale_problem(
         + f" (median of {count} stretches of motion)"
     )
     if unit is None and 0.6 * DEG_PER_RAD <= ratio <= 1.6 * DEG_PER_RAD:
-        return (
+        return InputError(
             f"the gyroscope seems to read in deg/s, not rad/s: {what}, and deg/s is off by "
-            f"{DEG_PER_RAD:.1f}; give --gyro-unit deg/s (gyro_unit='deg/s')"
+            f"{DEG_PER_RAD:.1f}; give --gyro-unit deg/s (gyro_unit='deg/s')",
+            code=GYRO_UNIT,
         )
     if rate is not None and 1 / 30 < ratio < 30:  # beyond, a raw unit more likely than a rate
         likely = rate * ratio
         against = "the log's time column" if has_time else "the log"
-        return (
+        return InputError(
             f"{RATE_PREFIX}{rate:g} contradicts {against}: at that rate {what}; the samples "
             f"come at about {likely:.3g} Hz: give --rate {likely:.3g}"
             + (" or leave --rate out to use the time column" if has_time else "")
-            + " (or, if the rate is right, the gyroscope's unit with --gyro-unit)"
+            + " (or, if the rate is right, the gyroscope's unit with --gyro-unit)",
+            code=WRONG_RATE,
         )
-    return (
+    return InputError(
         f"{what}; give the gyroscope's unit with --gyro-unit (rad/s, deg/s, or a number: rad/s "
-        "per raw unit) and check that the time column is in seconds (--time-col)"
+        "per raw unit) and check that the time column is in seconds (--time-col)",
+        code=GYRO_UNIT,
     )

@@ -24,12 +24,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calibration import Accuracy, Calibration, Reason, Verdict
-from ..findings import TemperatureSpan
+from ..findings import MotionFindings, TemperatureSpan
 from ..likelihood.temperature import MIN_SPAN_K
+from ..methods.continuous.motion_checks import gyro_check
 from ..reference import FieldReference
 from ..stats.pose_stats import PoseStats
-from ..verdicts import Level, VerdictLevel
+from ..verdicts import VerdictLevel
 from .interference_fit import interference_reasons
+from .rule_table import RULES
 from .targets import DEFAULT_TARGETS, Targets
 
 __all__ = [
@@ -49,215 +51,6 @@ __all__ = [
 
 Array = NDArray[np.float64]
 
-#: code -> (level, message template). Each message names the cause and the fix.
-RULES: dict[str, tuple[Level, str]] = {
-    "interference_unusable": (
-        "fail",
-        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
-        "{peak:.3g} {unit} (above 60 %, ArduPilot's compassmot limit): {heading:.1f}° of heading "
-        "error uncorrected, {corrected:.1f}° after correction; move the compass away from the "
-        "power leads, ESCs and motors (a GPS/compass mast) or twist the power leads together",
-    ),
-    "interference": (
-        "warn",
-        "the vehicle's {input} adds {share:.0%} of the Earth's field to the magnetometer at "
-        "{peak:.3g} {unit} (30-60 %, ArduPilot's compassmot grey zone): {heading:.1f}° of "
-        "heading error uncorrected, {corrected:.1f}° after correction; load the compensation "
-        "(COMPASS_MOT_*, CAL_MAG*_COMP), and better move the compass away from the power leads "
-        "or twist them together",
-    ),
-    "interference_not_identifiable": (
-        "warn",
-        "the magnetometer's interference in {input} is not identifiable from this log: "
-        "{missing}; no compensation is given",
-    ),
-    "not_converged": (
-        "fail",
-        "the optimiser did not converge ({detail}); record more orientations or raise the "
-        "iteration limit",
-    ),
-    "degenerate": (
-        "fail",
-        "the poses barely determine the calibration (condition number {condition:.2g}); add "
-        "poses with the body's {axis} axis pointing up and down",
-    ),
-    "too_many_rejected": (
-        "fail",
-        "{rejected} of {total} poses had to be dropped (more than a quarter); record the session "
-        "again, away from iron and with the device held still",
-    ),
-    "unidentifiable": (
-        "fail",
-        "{flagged} further pose(s) disagree with the model but dropping them would leave too "
-        "few to calibrate; record the session again, away from iron, device held still",
-    ),
-    "same_sensor": (
-        "fail",
-        "the magnetometer readings are an affine copy of the accelerometer's (relative residual "
-        "{residual:.2g}); check that the magnetometer columns are not the accelerometer's",
-    ),
-    "not_rigid": (
-        "fail",
-        "the {sensor}'s pose means scatter about the best fit by {ratio:.1%} of the field beyond "
-        "their noise; no rigid device at rest does that (pose labels mixing orientations, "
-        "wrong columns, or motion): check the pose grouping and the columns",
-    ),
-    "unusable": (
-        "fail",
-        "the calibration is too uncertain to use (predicted {what} error {value}, more than "
-        "{factor:g}x the {target} target); {record}",
-    ),
-    "accuracy": (
-        "warn",
-        "the predicted {what} error {value} is worse than the {target} target; {record} (or "
-        "set the target with --target-{option})",
-    ),
-    "untested": (
-        "warn",
-        "the fit certificate has {dof} degree(s) of freedom, too few ({minimum} or more) to "
-        "test the model or find a disturbed pose; record {more} more pose(s) ({needed} in all)",
-    ),
-    "implausible_gain": (
-        "warn",
-        "the {sensor}'s gain is implausible for its sensor class ({what} {value:.3g}, more than "
-        "{limit:.0%} off {expected}); check the columns, the units (--{option}) and that the "
-        "device was still and rigid in every pose",
-    ),
-    "rejected": (
-        "warn",
-        "{count} pose(s) dropped as disturbed ({which}); see `rejected` for each and why",
-    ),
-    "trimmed": (
-        "warn",
-        "{share:.0%} of the {sensor}'s samples were cut as not still ({poses} poses); rows of "
-        "another orientation inside a pose, or motion at the pose edges: check the pose "
-        "labels or shorten the still intervals",
-    ),
-    "pose_noise": (
-        "warn",
-        "the {sensor}'s pose-to-pose error is {ratio:.1f}x its per-sample noise: "
-        "poses not really still, or a magnetically busy site; rest the device on a firm "
-        "support away from iron",
-    ),
-    "coverage": (
-        "warn",
-        "the poses cover the orientations poorly (the body's {axis} axis rarely points up or "
-        "down); add such poses for a better calibration",
-    ),
-    "negative_dip": (
-        "note",
-        "the dip came out negative ({dip:.1f}°): right in the southern magnetic hemisphere; "
-        "otherwise the magnetometer is mirrored (--mag-mirrored) or the accelerometer reports "
-        "gravity instead of specific force (--accel-sign gravity)",
-    ),
-    "reference_mirrored": (
-        "warn",
-        "the magnetometer came out mirrored relative to the accelerometer to match the "
-        "{model}'s dip at {place} ({expected:+.1f}°): if it is (as on an LSM9DS1), state "
-        "--mag-mirrored; if it is not, the accelerometer reports gravity instead of specific "
-        "force (--accel-sign gravity), or --location is in the wrong hemisphere",
-    ),
-    "reference_unmirrored": (
-        "warn",
-        "--mag-mirrored was stated, but the {model}'s dip at {place} ({expected:+.1f}°) makes "
-        "the magnetometer right-handed relative to the accelerometer, and the reference decided: "
-        "drop --mag-mirrored, or check --accel-sign and --location",
-    ),
-    "reference_undecided": (
-        "note",
-        "the dip at {place} ({expected:+.1f}° in the {model}, fitted {dip:+.1f}°) is too close "
-        "to 0° to tell a mirrored magnetometer; its handedness follows --mag-mirrored",
-    ),
-    "reference_dip": (
-        "warn",
-        "the fitted dip {dip:.2f} ± {std:.2f}° differs from the {model}'s {expected:.2f} ± "
-        "{ref_std:.2f}° at {place} on {date} by {diff:.1f}°, more than 3σ plus the "
-        "{allowance:g}° allowed for local anomalies: a disturbed site (steel, magnets, "
-        "electronics, reinforced concrete: calibrate outdoors away from them), a wrong "
-        "--location or --date, an accelerometer reporting gravity (--accel-sign gravity) or a "
-        "mirrored magnetometer (--mag-mirrored)",
-    ),
-    "not_ml": (
-        "warn",
-        "the {method} estimate's likelihood is far below the optimum (J exceeds the maximum "
-        "likelihood fit's by {excess:.3g}, χ²({dof}) p = {p:.2g}); the mle method would be more "
-        "accurate",
-    ),
-    "correlated_poses": (
-        "note",
-        "the poses are consecutive pieces of one continuous motion: neighbouring poses' "
-        "residuals are correlated (τ = {tau:.3g} poses, about {effective:.0f} independent of "
-        "{poses}), so the error bars are widened {widening:.2g}x and the fit certificate is "
-        "not a test of the model; rests (still detection) give a real test",
-    ),
-    "temperature_span": (
-        "note",
-        "the poses' temperatures span {span:.1f} K ({low:.1f} to {high:.1f} °C): temperature "
-        "terms need at least {need:g} K (power the board on cold and record poses while it "
-        "warms); calibrated at the mean temperature {mean:.1f} °C",
-    ),
-    "implausible": (
-        "warn",
-        "the fit is implausible under the stated noise (J = {cost:.4g} for χ²({dof}), p = "
-        "{p:.2g}); let fieldcal estimate the pose-level noise (pose noise auto)",
-    ),
-    "gyro_gain": (
-        "warn",
-        "the gyroscope's gain is implausible for a MEMS gyroscope ({what} {value}, limit "
-        "{limit}); check the gyroscope's unit (rad/s: deg/s reads 57.3 times too much, "
-        "--gyro-unit), its columns and axes (--gyro-cols), and that the log's time is in seconds",
-    ),
-    "gyro_misalignment": (
-        "note",
-        "the gyroscope's axes are {angle:.1f}° from the accelerometer's (more than {limit:g}°): "
-        "on one die they agree within 1–2°; between separate chips this is their mounting, "
-        "otherwise check the gyroscope's axis columns (--gyro-cols)",
-    ),
-    "gyro_segments": (
-        "note",
-        "{left_out} of {total} motion segments were left out of the gyroscope's fit: their "
-        "integrated turn disagrees with the poses' (a bump, a gap in the log, or time stamps "
-        "that are not the samples' own)",
-    ),
-    "gyro_misfit": (
-        "note",
-        "the gyroscope's motion segments disagree with its model beyond their noise (p = "
-        "{p:.2g}); its error bars are widened {widening:.3g}x: check the time column and that "
-        "the device was turned, not shaken, between the poses",
-    ),
-    "continuous_undetermined": (
-        "fail",
-        "{advice}",
-    ),
-    "continuous_unsettled": (
-        "fail",
-        "the fit left {which} undetermined although the log turned through them: the fit did "
-        "not settle (check that the time column is in seconds, the gyroscope in rad/s, and "
-        "that the log is not decimated below the motion's bandwidth)",
-    ),
-    "continuous_disturbed": (
-        "note",
-        "{disturbed:.3g} s of {duration:.3g} s were down-weighted for body acceleration; turn "
-        "the device through the orientations with smooth, slower turns rather than shaking it",
-    ),
-    "dropped_lines": (
-        "warn",
-        "{dropped} of {total} data lines ({share:.1%}) were dropped as unreadable ({which}); "
-        "the samples between are missing: check the cable, the baud rate and that the device "
-        "writes whole lines",
-    ),
-    "unexplained_scale": (
-        "warn",
-        "the {sensor}'s gain is {scale:.3g} raw units per {unit}: no physical unit explains "
-        "that (expected {low:g} to {high:g}); check that the columns hold the sensor's readings "
-        "and how they were scaled",
-    ),
-    "temperature_ignored": (
-        "warn",
-        "the temperature column {column!r} was not used ({why}); the calibration has no "
-        "temperature terms: give the column in °C, or leave --temp-col out",
-    ),
-}
 
 #: Condition number of the Jacobi-scaled reduced system above which the poses are degenerate.
 CONDITION_LIMIT = 1e10
@@ -754,23 +547,23 @@ def _temperature_span(case: Case) -> Iterator[Fired]:
         yield "temperature_span", {**values, "mean": span.mean, "need": MIN_SPAN_K}
 
 
-#: A gyroscope's plausible gain: scale within this share of 1 (MEMS datasheets: ±3 %; deg/s
-#: for rad/s is 57x), axis scales and cross-axis terms within it. Its axes' angle to the
-#: accelerometer's: beyond :data:`GYRO_MISALIGNMENT_DEG` a note (one die: datasheets ±1–2°;
-#: separate chips may be mounted further apart), beyond :data:`GYRO_AXES_DEG` a wrong axis
-#: (a swapped or reversed pair turns the triad by 90° or 180°).
+#: A pose calibration's gyroscope: its plausible gain, scale within this share of 1 (MEMS
+#: datasheets: ±3 %; deg/s for rad/s is 57x), axis scales and cross-axis terms within it, and
+#: its axes within :data:`GYRO_AXES_DEG` of the accelerometer's (a swapped or reversed pair
+#: turns the triad by 90° or 180°; separate chips may be mounted a few degrees apart).
 GYRO_SCALE = 0.1
-GYRO_MISALIGNMENT_DEG = 3.0
 GYRO_AXES_DEG = 15.0
 
 
-@_owns("gyro_gain", "gyro_misalignment")
+@_owns("gyro_gain")
 def _gyro_gain(case: Case) -> Iterator[Fired]:
     """The gyroscope's gain (raw rad/s per rad/s, in the accelerometer's body frame): its scale,
     a reversed axis, its shape (axis scales, cross-axis) and its axes' angle to the
     accelerometer's."""
     sensor = case.cal.gyro
-    if sensor is None or not np.all(np.isfinite(sensor.gain)):
+    if sensor is None or case.cal.findings.motion is not None:  # continuous: _motion_gyro
+        return
+    if not np.all(np.isfinite(sensor.gain)):
         return
     W, sigma, Vt = np.linalg.svd(sensor.gain)
     if not sigma[-1] > 0:
@@ -792,8 +585,6 @@ def _gyro_gain(case: Case) -> Iterator[Fired]:
     elif angle > GYRO_AXES_DEG:
         numbers = {"value": f"{angle:.1f}°", "limit": f"{GYRO_AXES_DEG:g}°"}
         yield "gyro_gain", {"what": "angle to the accelerometer's axes", **numbers}
-    elif angle > GYRO_MISALIGNMENT_DEG:
-        yield "gyro_misalignment", {"angle": angle, "limit": GYRO_MISALIGNMENT_DEG}
 
 
 #: A gyroscope fit whose segments misfit below this p-value has its error bars widened.
@@ -813,7 +604,69 @@ def _gyro_segments(case: Case) -> Iterator[Fired]:
         yield "gyro_misfit", {"p": found.p_value, "widening": found.widening}
 
 
-@_owns("continuous_undetermined", "continuous_unsettled", "continuous_disturbed")
+#: The continuous fit's rules (:class:`fieldcal.findings.MotionFindings`): the calibrated
+#: field's strength beyond this RMS relative departure from 1 is disturbed (BROAD: 2.5–3.7 %
+#: undisturbed in a lab, 15 % with a magnet 2 cm away).
+FIELD_STRENGTH_LIMIT = 0.06
+#: The gyroscope's rates over the magnetometer direction's turning outside this range: wrong
+#: units (1 for rad/s; 57 for °/s). Wide: hard iron slows the raw direction's turns.
+GYRO_UNITS_RANGE = (0.25, 8.0)
+#: The gyroscope's scale (``|det K_g|^(1/3)``) beyond this share off 1: wrong units or columns.
+GYRO_SCALE_LIMIT = 0.2
+#: Degrees of misalignment of a gyroscope axis that draw a warning (when significant at 2σ).
+GYRO_MISALIGNMENT_DEG = 3.0
+#: A gyroscope axis's misalignment standard error (degrees) beyond which the log does not
+#: determine it.
+GYRO_UNDETERMINED_DEG = 1.0
+#: Radians per sample (99th percentile of ``|ω| Δt``) beyond which the turns are too fast.
+FAST_STEP_RAD = 0.25
+_AXES = "xyz"
+
+
+def _units_wrong(motion: MotionFindings) -> bool:
+    ratio = motion.gyro_units_ratio
+    low, high = GYRO_UNITS_RANGE
+    return ratio is not None and not low <= ratio <= high
+
+
+@_owns("gyro_units", "gyro_gain_sign", "gyro_gain_scale", "gyro_misalignment", "gyro_undetermined")
+def _motion_gyro(case: Case) -> Iterator[Fired]:
+    """A continuous fit's gyroscope: its units against the magnetometer's turning, the sign,
+    scale (unless the units are blamed) and each axis's alignment with its standard error
+    (:func:`fieldcal.methods.continuous.motion_checks.gyro_check`)."""
+    motion, sensor, cov = case.cal.findings.motion, case.cal.gyro, case.cal.covariance
+    if motion is None:
+        return
+    units_wrong = _units_wrong(motion)
+    if units_wrong:
+        yield "gyro_units", {"ratio": motion.gyro_units_ratio}
+    if sensor is None or cov is None:
+        return
+    gyro = gyro_check(sensor.gain, cov)
+    negative = gyro["negative_axes"]
+    if negative:
+        values = ", ".join(f"{_AXES[i]} {gyro['diagonal'][i]:+.3g}" for i in negative)
+        plural = "es" if len(negative) > 1 else "is"
+        axes = ", ".join(_AXES[i] for i in negative)
+        yield "gyro_gain_sign", {"axes": axes, "plural": plural, "values": values}
+    if not units_wrong and abs(gyro["scale"] - 1.0) > GYRO_SCALE_LIMIT:
+        yield "gyro_gain_scale", {"scale": gyro["scale"], "limit": GYRO_SCALE_LIMIT}
+    pairs = zip(gyro["misalignment_deg"], gyro["misalignment_std_deg"], strict=True)
+    for i, (angle, std) in enumerate(pairs):
+        if std > GYRO_UNDETERMINED_DEG:
+            yield "gyro_undetermined", {"axis": _AXES[i], "std": std}
+        elif angle - 2.0 * std > GYRO_MISALIGNMENT_DEG:
+            numbers = {"angle": angle, "std": std, "limit": GYRO_MISALIGNMENT_DEG}
+            yield "gyro_misalignment", {"axis": _AXES[i], **numbers}
+
+
+@_owns(
+    "continuous_undetermined",
+    "continuous_unsettled",
+    "continuous_disturbed",
+    "continuous_field_disturbed",
+    "continuous_fast_turns",
+)
 def _motion(case: Case) -> Iterator[Fired]:
     """The continuous-motion estimator's findings (:class:`fieldcal.findings.MotionFindings`):
     parameters the motion leaves undetermined (with the turns to add), a fit that did not
@@ -832,6 +685,16 @@ def _motion(case: Case) -> Iterator[Fired]:
             "continuous_disturbed",
             {"disturbed": found.disturbed_seconds, "duration": found.duration_seconds},
         )
+    if found.field_strength_rms > FIELD_STRENGTH_LIMIT:
+        numbers = {"limit": FIELD_STRENGTH_LIMIT, "dip": found.dip_spread_deg, "stretch": 2.0}
+        yield "continuous_field_disturbed", {"strength": found.field_strength_rms, **numbers}
+    if found.turn_step_rad > FAST_STEP_RAD or found.clipped_axes:
+        clipped = found.clipped_axes
+        where = ""
+        if clipped:
+            where = f"; the gyroscope's {', '.join(_AXES[i] for i in clipped)} at its range"
+        turns: dict[str, object] = {"step": found.turn_step_rad, "clipped": where}
+        yield "continuous_fast_turns", {"rate": found.max_rate, **turns}
 
 
 #: The rules, run in this order by :func:`judge` (reasons of one level keep it).
@@ -861,6 +724,7 @@ CHECKS: tuple[Check, ...] = (
     _gyro_gain,
     _gyro_segments,
     _motion,
+    _motion_gyro,
 )
 #: The rules judged on the finished calibration in the user's units, after every stage of a
 #: path (the gyroscope of a pose calibration, the input's own findings), applied by

@@ -18,7 +18,7 @@ Orchestration only; the pieces live in
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
 
@@ -27,18 +27,20 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import chdtrc
 from threadpoolctl import threadpool_limits
 
-from ...calibration import Calibration, Diagnostics, SensorCalibration
+from ...calibration import Calibration, Diagnostics, ParameterCovariance, SensorCalibration
 from ...errors import InputError
 from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
+from .held_blocks import Held, held_blocks
 from .initial import start
-from .model import N_PARAMS, Data, State, accel_block, mag_block
+from .model import LEVER, Data, State, accel_of, mag_block
+from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
-from .preintegration import HOLDS
+from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
-from .uncertainty import BATCH, NAMES, kept_shares, sandwich
+from .uncertainty import BATCH, LEVER_NAMES, NAMES, kept_shares, sandwich
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
 
 __all__ = ["EPOCH_SECONDS", "MIN_SECONDS", "fit_continuous"]
@@ -55,6 +57,9 @@ PRIOR_GAIN = 0.25
 PRIOR_GYRO_GAIN = 0.06
 #: Prior standard deviation of the gyroscope's bias, rad/s.
 PRIOR_GYRO_BIAS = 0.5
+#: Prior standard deviation of each component of the lever arm, metres (Eq. C7): a hand-held
+#: device turns within about half a metre of the point it turns about (a wrist, an elbow).
+PRIOR_LEVER = 0.5
 #: The first round's gyroscope noise, as a share of its RMS rate (unless ``gyro_noise`` is
 #: given): weak, so that the field sensors lead until the factors' noise is measured.
 WEAK_GYRO = 0.02
@@ -85,7 +90,7 @@ def _weights(
     """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals, divided
     by the share of its errors the fit keeps (``kept``, :func:`.uncertainty.kept_shares`);
     the gyroscope's from ``rate_var`` (rad²/s² per axis)."""
-    ra = accel_block(state, data.accel, data.temperature).residual
+    ra = accel_of(state, data).residual
     rm = mag_block(state, data.mag, data.temperature).residual
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
@@ -110,9 +115,10 @@ def _gyro_variance(state: State, data: Data, w: Weights, rate_var: float, kept: 
     passes on to the gyroscope's residuals (BROAD: 6 times), and trusting the gyroscope less
     for them made the trajectory and the gains worse against the motion capture."""
     f = state_factors(state, data)
-    mean_square = float(np.mean(w.gyro * np.sum(f.residual**2, axis=1)) / 3.0)
+    # per interval, the rate error the factor implies (rad/s)²
+    mean_square = float(np.mean(np.sum(f.residual**2, axis=1) / f.dt**2) / 3.0)
     white = gyro_rate_variance(data.gyro, state.gyro_gain)
-    misfit = rate_var * mean_square / kept
+    misfit = mean_square / kept
     return misfit if misfit > GYRO_MISFIT**2 * white else white
 
 
@@ -134,11 +140,13 @@ def _prior(state: State) -> Prior:
             [np.pi],
             np.full(9, PRIOR_GYRO_GAIN),
             np.full(3, PRIOR_GYRO_BIAS),
+            np.full(3, PRIOR_LEVER),
         ]
     )
-    mean = state.vector()[:N_PARAMS]
+    mean = state.vector()[: LEVER.stop]
     mean[22:31] = np.eye(3).ravel()
     mean[31:34] = 0.0
+    mean[LEVER] = 0.0
     return Prior(mean, 1.0 / std**2)
 
 
@@ -168,18 +176,27 @@ def _findings(
     trajectory: dict[str, Any],
     lacking: str | None,
     thermal: dict[str, Any] | None,
+    measured: dict[str, Any],
 ) -> Findings:
     """What the verdict's rules judge (:mod:`fieldcal.findings`): what the motion leaves
     undetermined (with the turns to add), what it lacks or what the fit left unsettled, the
     seconds down-weighted for body acceleration, a temperature span too small for terms. The
-    estimator builds no reason: ``continuous_*`` and ``temperature_span`` in
-    :mod:`fieldcal.trust.verdict` read these."""
+    estimator builds no reason: ``continuous_*``, the gyroscope's rules and
+    ``temperature_span`` in :mod:`fieldcal.trust.verdict` read these; ``measured`` is
+    :func:`_measured`'s (:mod:`.motion_checks`: the field, the gyroscope's units, the turns)."""
+    field, turns = measured["field_check"], measured["turn_check"]
     motion = MotionFindings(
         undetermined=tuple(check.advice),
         lacking=lacking or "",
         unsettled=tuple(check.unsettled),
         disturbed_seconds=float(sum(d["seconds"] for d in disturbed)),
         duration_seconds=float(trajectory["duration_s"]),
+        field_strength_rms=float(field["strength_rms"]),
+        dip_spread_deg=float(field["dip_spread_deg"]),
+        gyro_units_ratio=measured["gyro_units_ratio"],
+        turn_step_rad=float(turns["step_rad_p99"]),
+        max_rate=float(turns["max_rate"]),
+        clipped_axes=tuple(int(i) for i in turns["clipped_axes"]),
     )
     span = None
     if thermal is not None and "refused" in thermal:
@@ -199,10 +216,12 @@ def fit_continuous(
     rounds: int = 2,
     tol: float = 1e-3,
     gravity: float | None = None,
-    hold: str = "midpoint",
+    hold: str | Sequence[str] | None = None,
     gyro_noise: float | None = None,
     on_progress: Callable[[str], None] | None = None,
     temperature: ArrayLike | None = None,
+    gyro_sampling: str = "auto",
+    prior: object = None,
 ) -> Calibration:
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
@@ -228,12 +247,23 @@ def fit_continuous(
         Decrease of the cost (half a χ²) below which a round stops.
     gravity : float, optional
         ``|g|`` in the accelerometer's units, for the body acceleration in those units.
-    hold : {"midpoint", "previous"}
-        How a gyroscope reading stands for the interval between samples: the mean of the two
-        ends (default), or the first (a reading that is the mean rate over the next interval).
+    hold : str or sequence of str, optional
+        Blocks held fixed at ``prior``'s values (:mod:`.held_blocks`): any of ``gyro.gain``,
+        ``gyro.bias``, ``accel.bias``, ``mag.bias`` (``"gyro.gain,gyro.bias"``). The former
+        spellings ``"midpoint"``/``"previous"`` still name the sampling convention (as
+        ``gyro_sampling="instant"``/``"mean"``).
     gyro_noise : float, optional
         The gyroscope's white noise per sample (rad/s, one axis), when known; by default
-        measured from the raw rates' second differences.
+        measured from the raw rates' second differences (which real rate jitter at the sample
+        rate inflates: give it then, e.g. from a datasheet or a still log).
+    gyro_sampling : {"auto", "instant", "mean"}
+        Whether a gyroscope reading is the rate at its instant (the interval between samples
+        takes the mean of its two ends) or the mean rate over the interval that follows it.
+        ``"auto"``: detected from how the magnetometer's direction turns
+        (:func:`.preintegration.sampling_evidence`), ``"instant"`` when the data cannot tell;
+        ``options["gyro_sampling"]`` records the choice and how it was made.
+    prior : Calibration or path, optional
+        The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at.
     on_progress : callable, optional
         Hears one line per round.
     temperature : (n,) array_like, optional
@@ -278,15 +308,17 @@ def fit_continuous(
             gyro_noise,
             on_progress,
             temperature,
+            gyro_sampling,
+            prior,
         )
 
 
 def _check_options(
-    max_iter: int, rounds: int, tol: float, hold: str, gyro_noise: float | None
+    max_iter: int, rounds: int, tol: float, sampling: str, gyro_noise: float | None
 ) -> None:
     """One-line errors for the fit's options."""
-    if hold not in HOLDS:
-        raise InputError(f"hold must be one of {', '.join(HOLDS)}; got {hold!r}"[:200])
+    if sampling not in ("auto", *SAMPLINGS):
+        raise InputError(f"gyro_sampling must be auto, instant or mean; got {sampling!r}"[:200])
     for name, value in (("max_iter", max_iter), ("rounds", rounds)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise InputError(f"{name} must be a whole number of at least 1, got {value!r}"[:200])
@@ -298,7 +330,7 @@ def _check_options(
         raise InputError(f"gyro_noise must be a positive number of rad/s, got {gyro_noise!r}")
 
 
-def _inputs(time: ArrayLike, accel: ArrayLike, mag: ArrayLike, gyro: ArrayLike, hold: str) -> Data:
+def _inputs(time: ArrayLike, accel: ArrayLike, mag: ArrayLike, gyro: ArrayLike) -> Data:
     """The readings checked (shapes, finite values, time strictly increasing, long enough)."""
     t = _array("time", time, None, 1)
     n = len(t)
@@ -320,7 +352,76 @@ def _inputs(time: ArrayLike, accel: ArrayLike, mag: ArrayLike, gyro: ArrayLike, 
             f"the log lasts {t[-1] - t[0]:.3g} s; continuous calibration needs at least "
             f"{MIN_SECONDS:g} s of turning through every orientation"
         )
-    return Data(t, a, m, g, hold)
+    return Data(t, a, m, g)
+
+
+def _sampling(state: State, data: Data, given: str) -> dict[str, Any]:
+    """The gyroscope's sampling convention: as given, or detected
+    (:func:`.preintegration.sampling_evidence` on the start's calibrated magnetometer): the
+    share ``λ`` is about 1 for instant readings and 0 for interval means; a convention is taken
+    when ``λ`` is consistent with its value (within 3 standard errors plus 0.25) and not with the
+    other's. Otherwise ``"instant"``: the data cannot tell (slow changes of rate), or the timing
+    fits neither (a magnetometer that lags or leads the gyroscope), which the note says."""
+    if given != "auto":
+        return {"used": given, "how": "given"}
+    field = np.asarray(np.linalg.solve(state.mag_gain, (data.mag - state.mag_bias).T).T, np.float64)
+    field /= np.maximum(np.linalg.norm(field, axis=1), 1e-300)[:, None]
+    lam, std = sampling_evidence(data.time, data.gyro, field)
+    near = {c: bool(np.isfinite(lam) and abs(lam - c) < 3.0 * std + 0.25) for c in (0.0, 1.0)}
+    if near[0.0] != near[1.0]:
+        used, how = ("mean" if near[0.0] else "instant"), "detected"
+    elif near[0.0]:
+        used, how = "instant", "default (the data cannot tell)"
+    else:
+        used, how = "instant", "default (the timing fits neither: the sensors' clocks may differ)"
+    return {"used": used, "how": how, "share": float(lam), "share_std": float(std)}
+
+
+def _gyro_source(gyro_noise: float | None, rate_var: float, white: float) -> str:
+    """Where the gyroscope's noise level came from (Eq. C6, :func:`_gyro_variance`)."""
+    if gyro_noise is not None:
+        return "given (gyro_noise)"
+    if abs(rate_var - white) <= 1e-9 * white:
+        return "raw rates' second differences"
+    return "the factors' misfit (beyond the raw rates' white noise)"
+
+
+def _measured(
+    state: State, data: Data, cov: ParameterCovariance, rates: Array, length: int
+) -> dict[str, Any]:
+    """The options the verdict's continuous rules read (:mod:`.motion_checks`) and the lever
+    arm with its standard error."""
+    t, g = data.time, data.gyro
+    return {
+        "lever_arm": {
+            "metres": [float(x) for x in state.lever],
+            "std_m": [float(x) for x in cov.stds(list(LEVER_NAMES))],
+        },
+        "gyro_check": gyro_check(state.gyro_gain, cov),
+        "gyro_units_ratio": gyro_units_ratio(t, data.mag, g),
+        "field_check": field_check(state, data, length),
+        "turn_check": turn_check(t, rates, g),
+    }
+
+
+def _starting(data: Data, given: str, held: Held | None) -> tuple[State, dict[str, Any], Prior]:
+    """The start (:func:`.initial.start`), the sampling convention (:func:`_sampling`, set on
+    ``data``), the held blocks put in place and the prior that holds them."""
+    first = start(data)
+    sampling = _sampling(first, data, given)
+    data.hold = SAMPLINGS[sampling["used"]]
+    if held is not None:
+        first = held.apply(first)
+    return first, sampling, _held_prior(first, held)
+
+
+def _held_prior(state: State, held: Held | None) -> Prior:
+    """:func:`_prior` of ``state``, its held blocks fixed at their values."""
+    prior = _prior(state)
+    if held is not None:
+        prior.mean[held.mask] = state.vector()[: len(held.mask)][held.mask]
+        prior.fixed = held.mask
+    return prior
 
 
 def _rounds(
@@ -378,14 +479,20 @@ def _fit(
     rounds: int,
     tol: float,
     gravity: float | None,
-    hold: str,
+    hold: str | Sequence[str] | None,
     gyro_noise: float | None,
     on_progress: Callable[[str], None] | None,
     temperature: ArrayLike | None = None,
+    gyro_sampling: str = "auto",
+    prior_cal: object = None,
 ) -> Calibration:
     """:func:`fit_continuous` without the thread limit."""
-    _check_options(max_iter, rounds, tol, hold, gyro_noise)
-    data = _inputs(time, accel, mag, gyro, hold)
+    if isinstance(hold, str) and hold in HOLDS:  # the former spelling of the convention
+        gyro_sampling = next(k for k, v in SAMPLINGS.items() if v == hold)
+        hold = None
+    _check_options(max_iter, rounds, tol, gyro_sampling, gyro_noise)
+    held = held_blocks(hold, prior_cal)
+    data = _inputs(time, accel, mag, gyro)
     thermal: dict[str, Any] | None = None
     if temperature is not None:
         data.temperature, thermal = temperature_record(
@@ -398,19 +505,19 @@ def _fit(
     length = max(1, round(STRETCH * rate))
     check_motion(a, g, t)
     batch = max(2, round(BATCH * rate))
-    first = start(data)
+    first, sampling, base_prior = _starting(data, gyro_sampling, held)
     again = partial(_rounds, data=data, length=length, gyro_noise=gyro_noise, rounds=int(rounds))
     again = partial(again, max_iter=int(max_iter), tol=float(tol), on_progress=on_progress)
-    state, w, levels, total, converged = again(first)
+    state, w, levels, total, converged = again(first, prior=base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
         allowed = thermal["allowed_order"]
         state, thermal["tests"] = choose_orders(state, data, w, allowed, batch, max_iter, tol)
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
-            state, w, levels, more, converged = again(state, prior=_prior(first))
+            state, w, levels, more, converged = again(state, prior=base_prior)
             total += more
     state = _canonical(state)
-    ra = accel_block(state, data.accel, data.temperature).residual
+    ra = accel_of(state, data).residual
     rm = mag_block(state, data.mag, data.temperature).residual
     f = state_factors(state, data)
     cov, crb, _ = sandwich(state, data, w, batch)
@@ -435,20 +542,15 @@ def _fit(
     )
     dof = 3 * n + 3 * n + 3 * (n - 1) - 3 * n - len(state.vector())
     rate_var = float(levels["gyro"][0])
-    gyro_source = (
-        "given (gyro_noise)"
-        if gyro_noise is not None
-        else "raw rates' second differences"
-        if rate_var <= gyro_rate_variance(g, state.gyro_gain) * (1 + 1e-9)
-        else "the factors' misfit (beyond the raw rates' white noise)"
-    )
+    gyro_source = _gyro_source(gyro_noise, rate_var, gyro_rate_variance(g, state.gyro_gain))
     step = max(1, round(EPOCH_SECONDS * rate))
     lacking = None
     if not converged or check.unsettled:  # blame the motion only if it lacks something
         # on the readings as logged: a fit that did not settle has no trajectory to trust
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
         lacking = motion_advice(a, raw_turned)
-    findings = _findings(check, disturbed, trajectory, lacking, thermal)
+    measured = _measured(state, data, cov, f.rates, length)
+    findings = _findings(check, disturbed, trajectory, lacking, thermal, measured)
     options: dict[str, Any] = {
         "mode": "continuous",
         "trajectory": trajectory,
@@ -465,9 +567,12 @@ def _fit(
             "advice": check.advice,
             "unsettled": check.unsettled,
         },
+        **measured,
         "epoch_seconds": float(step / rate),
         "epoch_step": int(step),
-        "hold": hold,
+        "hold": data.hold,
+        "gyro_sampling": sampling,
+        "held": [] if held is None else list(held.names),
         "max_iter": int(max_iter),
         "rounds": int(rounds),
     }

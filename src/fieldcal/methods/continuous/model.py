@@ -4,22 +4,35 @@ One epoch per sample ``j`` with its rotation ``R_j`` (world NED → body, the bo
 the accelerometer's symmetric gain, fieldcal's gauge). Readings (``docs/methods/continuous.md``,
 Eq. C1–C3)::
 
-    a_j = K_a R_j g + b_a + ε_a,j            g = GRAVITY = (0, 0, −1)              (C1)
+    a_j = K_a (R_j g + ℓ_j / g₀) + b_a + ε_a,j   g = GRAVITY = (0, 0, −1)           (C1)
+    ℓ_j = ω̇_j × r + ω_j × (ω_j × r)             ω_j = K_g⁻¹ (r_j − b_g)          (C1a)
     m_j = K_m R_j h(δ) + b_m + ε_m,j         h = (cos δ, 0, sin δ)                 (C2)
     Log(R_{j+1} R_jᵀ Exp(ω̄_j Δt_j)) = ε_g,j  ω̄_j = K_g⁻¹ (r̄_j − b_g)              (C3)
 
-``ε_a`` holds the sensor's noise and the body's acceleration (a per-stretch variance,
-:mod:`.weights`), ``ε_m`` the magnetometer's noise, ``ε_g`` the gyroscope's noise integrated
-over the interval (:mod:`.preintegration`). Rotations are perturbed on the left, in the body
-frame: ``R ← Exp(δ) R``.
+``ℓ_j`` (m/s², ``g₀`` = :data:`STANDARD_GRAVITY`) is the acceleration of a sensor at the lever arm
+``r`` (metres, body frame) from the point the hand turns about: tangential ``ω̇ × r`` and
+centripetal ``ω × (ω × r)``, the rate ``ω_j`` and its derivative ``ω̇_j`` from the calibrated
+gyroscope (the derivative a central difference over :data:`SLOPE_SECONDS` either side).
+``ε_a`` holds the sensor's noise and the rest of the body's acceleration, the hand's
+translation (a per-stretch variance, :mod:`.weights`), ``ε_m`` the magnetometer's noise,
+``ε_g`` the gyroscope's noise integrated over the interval (:mod:`.preintegration`).
+Rotations are perturbed on the left, in the body frame: ``R ← Exp(δ) R``.
 
 Parameter vector (34): accelerometer gain (6, symmetric: xx, yy, zz, xy, xz, yz), bias (3);
-magnetometer gain (9, row-major), bias (3); dip (1, radians); gyroscope gain (9), bias (3).
+magnetometer gain (9, row-major), bias (3); dip (1, radians); gyroscope gain (9), bias (3);
+then the lever arm ``r`` (3, metres, :data:`LEVER`).
 
 Temperature (issue 26, ``docs/methods/temperature.md``): when the log has a temperature, each
 sensor's bias may be ``b + Σ_k c_k d_j^k`` with ``d_j = T_j − T_ref`` (``State.temps``, (K, 3)
 per sensor, :data:`TEMP_SENSORS` order); the coefficients follow the 34 in the vector, and
 ``∂f_j/∂c_k = d_j^k I`` (the gyroscope's: its bias column times the held ``d^k``).
+
+The lever arm's Jacobians (analytic, Eq. C1b)::
+
+    ∂ℓ/∂r = [ω̇]× + [ω]×²,   ∂ℓ/∂ω = (ω·r) I + ω rᵀ − 2 r ωᵀ,   ∂ℓ/∂ω̇ = −[r]×
+    ∂ω/∂K_g[a,b] = −(K_g⁻¹)[:, a] ω_b,   ∂ω/∂b_g = −K_g⁻¹,   ∂ω̇/∂K_g[a,b] = −(K_g⁻¹)[:, a] ω̇_b
+
+so the accelerometer's residuals reach the gyroscope's gain and bias (:func:`accel_columns`).
 """
 
 from __future__ import annotations
@@ -33,13 +46,17 @@ from ...geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
 from ...geometry.rotations import exp_so3, hat
 
 __all__ = [
+    "LEVER",
     "N_PARAMS",
     "SLICES",
+    "STANDARD_GRAVITY",
     "TEMP_SENSORS",
     "Blocks",
     "Data",
     "State",
     "accel_block",
+    "accel_columns",
+    "accel_of",
     "columns",
     "mag_block",
     "powers",
@@ -54,6 +71,15 @@ SLICES = {
     "gyro": slice(22, 34),
 }
 N_PARAMS = 34
+#: Where the lever arm (metres) sits: after the 34 named parameters, before any temperature
+#: coefficients.
+LEVER = slice(34, 37)
+#: m/s² per g: the lever arm's acceleration in units of gravity (the accelerometer's gain
+#: carries its units).
+STANDARD_GRAVITY = 9.80665
+#: Seconds either side of a sample over which the rate's derivative is taken (a central
+#: difference: a shorter span passes the gyroscope's noise, a longer one smooths a fast turn).
+SLOPE_SECONDS = 0.01
 #: The sensors whose bias may carry temperature terms, in the parameter vector's order.
 TEMP_SENSORS = ("accel", "mag", "gyro")
 #: (row, column) of the accelerometer's six symmetric gain parameters.
@@ -72,6 +98,27 @@ class Data:
     hold: str = "midpoint"
     #: ``T_j − T_ref`` per sample (K), when the log has a temperature.
     temperature: Array | None = None
+    #: The raw rate's derivative at each sample (rad/s², :func:`rate_slope`); computed from
+    #: the whole log when not given (a chunk of it must carry its slice).
+    gyro_slope: Array | None = None
+
+    def __post_init__(self) -> None:
+        if self.gyro_slope is None:
+            self.gyro_slope = rate_slope(self.time, self.gyro)
+
+
+def rate_slope(time: Array, gyro: Array) -> Array:
+    """``ṙ_j`` (n, 3): the raw rate's central difference over :data:`SLOPE_SECONDS` either
+    side (at least one sample), one-sided at the ends."""
+    n = len(time)
+    if n < 2:
+        return np.zeros_like(gyro)
+    rate = 1.0 / float(np.median(np.diff(time)))
+    h = max(1, round(SLOPE_SECONDS * rate))
+    hi = np.minimum(np.arange(n) + h, n - 1)
+    lo = np.maximum(np.arange(n) - h, 0)
+    out: Array = (gyro[hi] - gyro[lo]) / (time[hi] - time[lo])[:, None]
+    return out
 
 
 @dataclass
@@ -88,6 +135,8 @@ class State:
     rotations: Array
     #: Temperature coefficients per sensor, (K, 3) (raw units per K^k); absent: none.
     temps: dict[str, Array] = field(default_factory=dict)
+    #: The lever arm ``r`` (metres, body frame, Eq. C1a).
+    lever: Array = field(default_factory=lambda: np.zeros(3))
 
     def copy(self) -> State:
         return State(
@@ -100,11 +149,12 @@ class State:
             self.gyro_bias.copy(),
             self.rotations.copy(),
             {s: c.copy() for s, c in self.temps.items()},
+            self.lever.copy(),
         )
 
     def vector(self) -> Array:
-        """The 34 parameters in the order of :data:`SLICES`, then the temperature
-        coefficients (:data:`TEMP_SENSORS` order, each ``(K, 3)`` row-major)."""
+        """The 34 parameters in the order of :data:`SLICES`, the lever arm (:data:`LEVER`), then
+        the temperature coefficients (:data:`TEMP_SENSORS` order, each ``(K, 3)`` row-major)."""
         Ka = self.accel_gain
         return np.concatenate(
             [
@@ -115,6 +165,7 @@ class State:
                 [self.dip],
                 self.gyro_gain.ravel(),
                 self.gyro_bias,
+                self.lever,
                 *(self.temps[s].ravel() for s in TEMP_SENSORS if s in self.temps),
             ]
         )
@@ -125,7 +176,7 @@ class State:
         Ka = np.zeros((3, 3))
         for k, (r, c) in enumerate(SYM):
             Ka[r, c] = Ka[c, r] = from_vec[k]
-        temps, at = {}, N_PARAMS
+        temps, at = {}, LEVER.stop
         for s in TEMP_SENSORS:
             if s in self.temps:
                 size = self.temps[s].size
@@ -141,6 +192,7 @@ class State:
             from_vec[31:34],
             exp_so3(dR) @ self.rotations,
             temps,
+            from_vec[LEVER],
         )
 
 
@@ -149,7 +201,7 @@ def columns(state: State, sensor: str) -> NDArray[np.intp]:
     :data:`SLICES`, then its temperature coefficients (if any)."""
     sl = SLICES[sensor]
     base = np.arange(sl.start, sl.stop)
-    at = N_PARAMS
+    at = LEVER.stop
     for s in TEMP_SENSORS:
         if s not in state.temps:
             continue
@@ -158,6 +210,43 @@ def columns(state: State, sensor: str) -> NDArray[np.intp]:
             return np.concatenate([base, np.arange(at, at + size)])
         at += size
     return base
+
+
+def accel_columns(state: State) -> NDArray[np.intp]:
+    """The columns :func:`accel_block`'s parameter Jacobian fills: the accelerometer's
+    (:func:`columns`), the lever arm's, then the gyroscope's gain and bias (through ``ω``)."""
+    return np.concatenate(
+        [columns(state, "accel"), np.arange(LEVER.start, LEVER.stop), np.arange(22, 34)]
+    )
+
+
+def lever_terms(state: State, raw: Array, slope: Array) -> tuple[Array, Array, Array]:
+    """Eq. C1a–C1b at every sample: ``ℓ`` (n, 3, m/s²), ``∂ℓ/∂r`` (n, 3, 3) and ``∂ℓ/∂(K_g,
+    b_g)`` (n, 3, 12), from the raw rates and their derivative ``slope``."""
+    Ginv = np.linalg.inv(state.gyro_gain)
+    w = (raw - state.gyro_bias) @ Ginv.T
+    wd = slope @ Ginv.T
+    r = state.lever
+    W = hat(w)
+    d_lever = hat(wd) + W @ W
+    ell = (d_lever @ r[:, None])[:, :, 0]
+    wr = w @ r
+    eye = np.eye(3)
+    d_w = (
+        wr[:, None, None] * eye
+        + w[:, :, None] * r[None, None, :]
+        - 2.0 * r[None, :, None] * w[:, None, :]
+    )
+    A = d_w @ Ginv  # ∂ℓ/∂ω · K_g⁻¹
+    B = -hat(r) @ Ginv  # ∂ℓ/∂ω̇ · K_g⁻¹
+    n = len(raw)
+    d_gyro = np.empty((n, 3, 12))
+    # column 3a + b: −(A)[:, a] ω_b − (B)[:, a] ω̇_b
+    d_gyro[:, :, :9] = -(
+        A[:, :, :, None] * w[:, None, None, :] + B[None, :, :, None] * wd[:, None, None, :]
+    ).reshape(n, 3, 9)
+    d_gyro[:, :, 9:] = -A
+    return ell, d_lever, d_gyro
 
 
 def powers(d: Array, order: int) -> Array:
@@ -187,12 +276,26 @@ class Blocks:
     params: Array
 
 
-def accel_block(state: State, accel: Array, temperature: Array | None = None) -> Blocks:
+def accel_block(
+    state: State,
+    accel: Array,
+    temperature: Array | None = None,
+    gyro: Array | None = None,
+    slope: Array | None = None,
+) -> Blocks:
     """Eq. C1: residuals and Jacobians of the accelerometer at every sample; with
-    ``temperature`` (``T_j − T_ref``) and terms in ``state.temps``, the bias follows it."""
+    ``temperature`` (``T_j − T_ref``) and terms in ``state.temps``, the bias follows it. With
+    the raw rates ``gyro`` and their derivative ``slope`` the lever arm's acceleration is in
+    the prediction and the Jacobian has :func:`accel_columns`' columns; without, only the
+    accelerometer's (:func:`columns`)."""
     accel, Jc = _thermal(state, "accel", accel, temperature)
     u = state.rotations @ GRAVITY  # (n, 3) body-frame "up"
     Ka = state.accel_gain
+    Jt = -Ka @ hat(u)  # d(K R g)/dδ = −K [R g]×
+    lever = None
+    if gyro is not None and slope is not None:
+        lever = lever_terms(state, gyro, slope)
+        u = u + lever[0] / STANDARD_GRAVITY
     pred = u @ Ka.T + state.accel_bias
     n = len(u)
     Jp = np.zeros((n, 3, 9))
@@ -201,10 +304,17 @@ def accel_block(state: State, accel: Array, temperature: Array | None = None) ->
         if r != c:
             Jp[:, c, k] = u[:, r]
     Jp[:, :, 6:9] = np.eye(3)
-    Jt = -Ka @ hat(u)  # d(K R g)/dδ = −K [R g]×
     if Jc.shape[2]:
         Jp = np.concatenate([Jp, Jc], axis=2)
+    if lever is not None:
+        K = Ka / STANDARD_GRAVITY
+        Jp = np.concatenate([Jp, K @ lever[1], K @ lever[2]], axis=2)
     return Blocks(accel - pred, Jt, Jp)
+
+
+def accel_of(state: State, data: Data) -> Blocks:
+    """:func:`accel_block` of a whole log (or chunk) with its lever arm (Eq. C1–C1b)."""
+    return accel_block(state, data.accel, data.temperature, data.gyro, data.gyro_slope)
 
 
 def mag_block(state: State, mag: Array, temperature: Array | None = None) -> Blocks:

@@ -27,7 +27,15 @@ from numpy.typing import NDArray
 
 from ...geometry.rotations import exp_so3, hat, log_so3
 
-__all__ = ["HOLDS", "GyroFactors", "gyro_factors", "right_jacobian", "thermal_factors"]
+__all__ = [
+    "HOLDS",
+    "SAMPLINGS",
+    "GyroFactors",
+    "gyro_factors",
+    "right_jacobian",
+    "sampling_evidence",
+    "thermal_factors",
+]
 
 Array = NDArray[np.float64]
 
@@ -87,6 +95,34 @@ class GyroFactors:
 
 
 HOLDS = ("midpoint", "previous")
+#: The gyroscope's sampling conventions by their user-facing names (``gyro_sampling=``,
+#: ``--gyro-sampling``) and the hold each means: a reading of the rate at its instant, or the
+#: mean rate over the interval that follows it (a gyroscope that reports the turn since its
+#: last output).
+SAMPLINGS = {"instant": "midpoint", "mean": "previous"}
+
+
+def sampling_evidence(time: Array, gyro: Array, field: Array) -> tuple[float, float]:
+    """Which sampling convention the readings follow, from the field's direction in the body.
+
+    A fixed world direction seen from the body (``field`` (n, 3), unit vectors: the
+    magnetometer calibrated by the start's ellipsoid) moves between samples as
+    ``v_{k+1} ≈ Exp(−φ_k) v_k``; the two conventions' turns differ by
+    ``δ_k = ½ (r_{k+1} − r_k) Δt × v̄_k``. With ``e_k = Δv_k + φ_k^mean × v̄_k`` (the interval
+    mean's misfit), the least-squares share ``λ = −Σ e·δ / Σ |δ|²`` is about 1 for rates read
+    at their instant and 0 for interval means. Returns ``(λ, its standard error)``; the error
+    is large when the rate hardly changes between samples (then the conventions agree)."""
+    dt = np.diff(time)[:, None]
+    v = field
+    mid = 0.5 * (v[1:] + v[:-1])
+    e = (v[1:] - v[:-1]) + np.cross(gyro[:-1] * dt, mid)
+    d = np.cross(0.5 * (gyro[1:] - gyro[:-1]) * dt, mid)
+    dd = float(np.sum(d * d))
+    if not np.isfinite(dd) or dd <= 0:
+        return float("nan"), float("inf")
+    lam = -float(np.sum(e * d)) / dd
+    rest = np.sum((e + lam * d) * d, axis=1)
+    return lam, float(np.sqrt(np.sum(rest**2))) / dd
 
 
 def gyro_factors(

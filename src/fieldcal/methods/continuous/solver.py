@@ -26,7 +26,7 @@ from scipy.linalg import cholesky_banded
 from scipy.linalg.lapack import dtbtrs
 
 from ...likelihood.marquardt import Schedule, minimise
-from .model import Data, State, accel_block, columns, mag_block
+from .model import Data, State, accel_block, accel_columns, columns, mag_block
 from .preintegration import GyroFactors, thermal_factors
 
 __all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
@@ -40,6 +40,15 @@ class Prior:
 
     mean: Array
     precision: Array
+    #: Parameters held fixed (:mod:`.held_blocks`): the step leaves them where they are.
+    fixed: NDArray[np.bool_] | None = None
+
+    def free(self, size: int) -> NDArray[np.bool_]:
+        """Which of ``size`` parameters the fit moves (those past ``mean`` always)."""
+        out = np.ones(size, dtype=bool)
+        if self.fixed is not None:
+            out[: len(self.fixed)] = ~self.fixed
+        return out
 
     def cost(self, p: Array) -> float:
         """Half the prior's χ² (temperature coefficients past ``mean`` carry no prior)."""
@@ -94,8 +103,14 @@ def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
         data.gyro[lo:stop],
         data.hold,
         None if data.temperature is None else data.temperature[lo:stop],
+        None if data.gyro_slope is None else data.gyro_slope[lo:stop],
     )
     return sub, part
+
+
+def _slope(data: Data) -> Array:
+    assert data.gyro_slope is not None  # Data computes it
+    return data.gyro_slope
 
 
 def cost(state: State, data: Data, w: Weights) -> float:
@@ -107,7 +122,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
         m = hi - lo
         sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
         d = None if part.temperature is None else part.temperature[:m]
-        ra = accel_block(sub_m, part.accel[:m], d).residual
+        ra = accel_block(sub_m, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]).residual
         rm = mag_block(sub_m, part.mag[:m], d).residual
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
@@ -166,7 +181,11 @@ def _assemble(
     own = dataclasses.replace(sub, rotations=sub.rotations[:m])
     d = None if part.temperature is None else part.temperature[:m]
     for block, weight, sl in (
-        (accel_block(own, part.accel[:m], d), w.accel[lo:hi], columns(sub, "accel")),
+        (
+            accel_block(own, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]),
+            w.accel[lo:hi],
+            accel_columns(sub),
+        ),
         (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual
@@ -245,9 +264,11 @@ def schur(normal: Normal, damping: float = 0.0) -> tuple[Array, Array, Array, Ar
     return 0.5 * (S + S.T), g, Z[:, :size], Z[:, size]
 
 
-def _step(normal: Normal, damping: float) -> tuple[Array, Array]:
+def _step(normal: Normal, damping: float, free: NDArray[np.bool_]) -> tuple[Array, Array]:
     S, g, W, z = schur(normal, damping)
-    dp = np.linalg.solve(S + 1e-14 * np.trace(S) * np.eye(len(S)), g)
+    Sf = S[np.ix_(free, free)]
+    dp = np.zeros(len(S))
+    dp[free] = np.linalg.solve(Sf + 1e-14 * np.trace(Sf) * np.eye(len(Sf)), g[free])
     x, info = dtbtrs(normal.factor, (z - W @ dp)[:, None], uplo="L", trans="T")
     if info != 0:
         raise np.linalg.LinAlgError(f"banded triangular solve failed (info {info})")
@@ -258,8 +279,8 @@ class _Trajectory:
     """The continuous problem for the shared loop (:func:`fieldcal.likelihood.marquardt.
     minimise`): a point is a :class:`State`; its linearisation the banded normal equations."""
 
-    def __init__(self, data: Data, w: Weights) -> None:
-        self.data, self.w = data, w
+    def __init__(self, data: Data, w: Weights, free: NDArray[np.bool_]) -> None:
+        self.data, self.w, self.free = data, w, free
 
     def linearise(self, state: State) -> tuple[State, Normal]:
         return state, normal_equations(state, self.data, self.w)
@@ -271,7 +292,7 @@ class _Trajectory:
     def propose(self, linear: tuple[State, Normal], lam: float) -> tuple[State, float] | None:
         state, normal = linear
         try:
-            dp, dt = _step(normal, lam)
+            dp, dt = _step(normal, lam, self.free)
         except np.linalg.LinAlgError:
             return None
         return state.updated(dp, dt), math.nan
@@ -311,6 +332,9 @@ def levenberg_marquardt(
     ``tol`` is absolute, in units of the cost (half a χ²): a step that lowers it by ``tol``
     moves the estimate by about ``sqrt(2 tol)`` standard errors (Mahalanobis), so the default
     stops when the steps are a twentieth of the error bars or less. The shared loop
-    (:func:`fieldcal.likelihood.marquardt.minimise`) with the rules of :class:`_Fivefold`."""
-    out = minimise(_Trajectory(data, w), state, math.nan, _Fivefold(tol), max_iter)
+    (:func:`fieldcal.likelihood.marquardt.minimise`) with the rules of :class:`_Fivefold`;
+    parameters a prior holds (``w.prior.free``) do not move."""
+    size = len(state.vector())
+    free = np.ones(size, dtype=bool) if w.prior is None else w.prior.free(size)
+    out = minimise(_Trajectory(data, w, free), state, math.nan, _Fivefold(tol), max_iter)
     return out.point, out.iterations, out.converged

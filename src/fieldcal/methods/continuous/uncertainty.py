@@ -45,7 +45,8 @@ from .model import (
     Blocks,
     Data,
     State,
-    accel_block,
+    accel_columns,
+    accel_of,
     columns,
     mag_block,
 )
@@ -54,6 +55,7 @@ from .solver import Normal, Weights, normal_equations, schur, state_factors
 
 __all__ = [
     "BATCH",
+    "LEVER_NAMES",
     "NAMES",
     "covariance",
     "information",
@@ -82,6 +84,16 @@ def _names(sensor: str) -> list[str]:
 NAMES: tuple[str, ...] = (*_names("accel"), *_names("mag"), "dip_deg", *_names("gyro"))
 
 
+#: Covariance names of the lever arm (metres, :data:`.model.LEVER`), after :data:`NAMES`.
+LEVER_NAMES: tuple[str, ...] = tuple(f"lever_arm_m[{i}]" for i in range(3))
+
+
+def _extra(state: State) -> tuple[str, ...]:
+    """The covariance's names past :data:`NAMES`: the lever arm's, then the temperature
+    coefficients' (the parameter vector's order)."""
+    return (*LEVER_NAMES, *temperature_labels(state))
+
+
 def temperature_labels(state: State) -> list[str]:
     """Covariance names of the temperature coefficients, in the parameter vector's order
     (``<sensor>.temp[k,j]``, :func:`fieldcal.thermal.temperature_names`)."""
@@ -94,8 +106,8 @@ def temperature_labels(state: State) -> list[str]:
 
 
 def _to_names(extra: int = 0) -> Array:
-    """``T`` with ``named = T @ p`` (37 × 34, plus ``extra`` temperature coefficients mapped
-    to themselves) for the perturbations of the parameters."""
+    """``T`` with ``named = T @ p`` (37 × 34, plus ``extra`` parameters — the lever arm, the
+    temperature coefficients — mapped to themselves) for the perturbations of the parameters."""
     T = np.zeros((len(NAMES) + extra, N_PARAMS + extra))
     T[len(NAMES) :, N_PARAMS:] = np.eye(extra)
     for k, (r, c) in enumerate(SYM):
@@ -114,9 +126,18 @@ def information(state: State, data: Data, w: Weights) -> Array:
     return S
 
 
-def _invert(S: Array) -> Array:
-    """The information's pseudo-inverse (a prior may hold directions the data leave free)."""
+def _invert(S: Array, free: NDArray[np.bool_] | None = None) -> Array:
+    """``S⁻¹`` over the ``free`` parameters (all by default; held ones' rows and columns 0), a
+    pseudo-inverse (a prior may hold directions the data leave free)."""
+    if free is not None and not np.all(free):
+        out = np.zeros_like(S)
+        out[np.ix_(free, free)] = _invert(S[np.ix_(free, free)])
+        return out
     return scaled_inverse(S, pseudo=True)
+
+
+def _free(w: Weights, size: int) -> NDArray[np.bool_] | None:
+    return None if w.prior is None else w.prior.free(size)
 
 
 def _named(C: Array, extra: tuple[str, ...] = ()) -> ParameterCovariance:
@@ -127,7 +148,7 @@ def _named(C: Array, extra: tuple[str, ...] = ()) -> ParameterCovariance:
 def covariance(state: State, data: Data, w: Weights) -> tuple[ParameterCovariance, Array]:
     """The named Cramér–Rao covariance (``NAMES``, Eq. C8) and the information it inverts."""
     S = information(state, data, w)
-    return _named(_invert(S), tuple(temperature_labels(state))), S
+    return _named(_invert(S, _free(w, len(S))), _extra(state)), S
 
 
 @dataclass
@@ -145,9 +166,10 @@ class _Jacobians:
 def _jacobians(state: State, data: Data) -> _Jacobians:
     d = data.temperature
     f = state_factors(state, data)
-    cols = {s: columns(state, s) for s in ("accel", "mag", "gyro")}
+    cols = {s: columns(state, s) for s in ("mag", "gyro")}
+    cols["accel"] = accel_columns(state)
     return _Jacobians(
-        accel_block(state, data.accel, d),
+        accel_of(state, data),
         mag_block(state, data.mag, d),
         f,
         cols,
@@ -210,16 +232,17 @@ def scores(state: State, data: Data, w: Weights, normal: Normal, W: Array) -> Ar
 
 
 def _fitted(
-    jac: _Jacobians, w: Weights, normal: Normal, S: Array, W: Array, eps: tuple[Array, ...]
+    jac: _Jacobians, w: Weights, normal: Normal, Sinv: Array, W: Array, eps: tuple[Array, ...]
 ) -> tuple[Array, ...]:
     """The residuals the linearised fit leaves of errors ``eps`` (accel, mag, gyro):
-    ``r̂ = ε − J H⁻¹ Jᵀ W ε``, by the factorisation already made."""
+    ``r̂ = ε − J H⁻¹ Jᵀ W ε``, by the factorisation already made (``Sinv``: the Schur
+    complement's inverse over the free parameters, :func:`_invert`)."""
     own, rhs_t, prev, nxt = _pushes(jac, w, *eps)
     rhs_t[:-1] += prev
     rhs_t[1:] += nxt
     rhs_p = own.sum(axis=0)
     z, info = dtbtrs(normal.factor, rhs_t.reshape(-1, 1), uplo="L")
-    dp = np.linalg.solve(S, rhs_p - W.T @ z[:, 0])
+    dp = Sinv @ (rhs_p - W.T @ z[:, 0])
     x, info2 = dtbtrs(normal.factor, z - (W @ dp)[:, None], uplo="L", trans="T")
     if info or info2:
         raise np.linalg.LinAlgError("banded triangular solve failed")
@@ -253,6 +276,7 @@ def kept_shares(state: State, data: Data, w: Weights, replicates: int = 2) -> Ar
     (REML-type) moment estimate of the noise levels (Eq. C6)."""
     normal = normal_equations(state, data, w)
     S, _, W, _ = schur(normal)
+    Sinv = _invert(S, _free(w, len(S)))
     jac = _jacobians(state, data)
     data_w = dataclasses.replace(w, prior=None)
     rng = np.random.default_rng(1)
@@ -261,7 +285,7 @@ def kept_shares(state: State, data: Data, w: Weights, replicates: int = 2) -> Ar
     weights = (w.accel, w.mag, w.gyro)
     for _ in range(replicates):
         eps = _draw(rng, data_w)
-        fitted = _fitted(jac, data_w, normal, S, W, eps)
+        fitted = _fitted(jac, data_w, normal, Sinv, W, eps)
         for k in range(3):
             total[k] += float(np.sum(weights[k] * np.sum(eps[k] ** 2, axis=1)))
             kept[k] += float(np.sum(weights[k] * np.sum(fitted[k] ** 2, axis=1)))
@@ -290,6 +314,7 @@ def attenuation(
     X: Array,
     batch: int,
     replicates: int = 4,
+    free: NDArray[np.bool_] | None = None,
 ) -> Array:
     """Per parameter, the share of the long-run variance that the fitted residuals keep (34,).
 
@@ -300,12 +325,12 @@ def attenuation(
     passed through the linearised fit (seeded: the result is deterministic): the sandwich's
     diagonal from the fitted residuals over the one from the errors themselves."""
     rng = np.random.default_rng(0)
-    Sinv = _invert(S)
+    Sinv = _invert(S, free)
     kept = np.zeros(len(S))
     total = np.zeros(len(S))
     for _ in range(replicates):
         eps = _draw(rng, w)
-        fitted = _fitted(jac, w, normal, S, W, eps)
+        fitted = _fitted(jac, w, normal, Sinv, W, eps)
         for out, r in ((total, eps), (kept, fitted)):
             om = long_run(_scores(jac, w, X, *r), batch)
             out += np.einsum("ij,jk,ki->i", Sinv, om, Sinv)
@@ -326,12 +351,13 @@ def sandwich(
     X = _profile(normal, W)
     psi = _scores(jac, data_w, X, jac.accel.residual, jac.mag.residual, jac.gyro.residual)
     omega = long_run(psi, batch)
-    share = attenuation(jac, data_w, normal, S, W, X, batch)
-    Sinv = _invert(S)
+    free = _free(w, len(S))
+    share = attenuation(jac, data_w, normal, S, W, X, batch, free=free)
+    Sinv = _invert(S, free)
     C = sandwich_form(Sinv, omega)
     C /= np.sqrt(np.outer(share, share))
     if w.prior is not None:
         m = len(w.prior.precision)
         C += Sinv[:, :m] @ np.diag(w.prior.precision) @ Sinv[:m, :]
-    extra = tuple(temperature_labels(state))
+    extra = _extra(state)
     return _named(0.5 * (C + C.T), extra), _named(Sinv, extra), S
