@@ -40,7 +40,11 @@ _TYPES = ["IMU", "IMU2", "IMU3", "MAG", "MAG2", "MAG3", "BAT", "CTUN", "ATT", "G
 _BODY = "body FRD"
 
 
-def _instance(message: Any, name: str) -> int:
+#: One DataFlash message as pymavlink's ``to_dict`` gives it: its fields by name.
+Row = dict[str, object]
+
+
+def _instance(message: object, name: str) -> int:
     for key in ("I", "Inst", "Instance"):
         value = getattr(message, key, None)
         if isinstance(value, int):
@@ -48,8 +52,8 @@ def _instance(message: Any, name: str) -> int:
     return int(name[-1]) - 1 if name[-1].isdigit() else 0
 
 
-def _collect(reader: Any) -> tuple[dict[tuple[str, int], list[dict[str, Any]]], dict[str, float]]:
-    rows: dict[tuple[str, int], list[dict[str, Any]]] = defaultdict(list)
+def _collect(reader: Any) -> tuple[dict[tuple[str, int], list[Row]], dict[str, float]]:
+    rows: dict[tuple[str, int], list[Row]] = defaultdict(list)
     params: dict[str, float] = {}
     while True:
         message = reader.recv_match(type=_TYPES)
@@ -64,7 +68,7 @@ def _collect(reader: Any) -> tuple[dict[tuple[str, int], list[dict[str, Any]]], 
     return rows, params
 
 
-def _column(rows: list[dict[str, Any]], *keys: str) -> Array | None:
+def _column(rows: list[Row], *keys: str) -> Array | None:
     if not all(k in rows[0] for k in keys):
         return None
     return np.array([[row[k] for k in keys] for row in rows], dtype=float).reshape(len(rows), -1)
@@ -108,7 +112,7 @@ def _attitude_quaternion(rpy_deg: Array) -> Array:
 
 
 def _streams(
-    rows: dict[tuple[str, int], list[dict[str, Any]]], params: dict[str, float]
+    rows: dict[tuple[str, int], list[Row]], params: dict[str, float]
 ) -> list[Stream | None]:
     out: list[Stream | None] = []
     for (name, inst), msgs in sorted(rows.items()):
@@ -153,7 +157,7 @@ def _streams(
     return out
 
 
-def _position(rows: dict[tuple[str, int], list[dict[str, Any]]]) -> dict[str, str]:
+def _position(rows: dict[tuple[str, int], list[Row]]) -> dict[str, str]:
     msgs = rows.get(("GPS", 0), [])
     if not msgs:
         return {}

@@ -24,6 +24,7 @@ often as the calibrated one (the small logging profile logs ``sensor_*`` at 0.1 
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -56,18 +57,27 @@ _RAW = "sensor frame, uncalibrated"
 _BODY = "body FRD, calibrated by PX4"
 
 
-def _time(data: dict[str, Any]) -> Array:
+#: A ULog message's fields by name (pyulog's ``data``): one array per field.
+Columns = Mapping[str, NDArray[np.generic]]
+
+
+def _floats(values: NDArray[np.generic]) -> Array:
+    """A field as float64 (the log's integer or float32 field)."""
+    return np.asarray(values, dtype=np.float64)
+
+
+def _time(data: Columns) -> Array:
     key = "timestamp_sample" if "timestamp_sample" in data else "timestamp"
     return np.asarray(data[key], dtype=float) * 1e-6
 
 
-def _vector(data: dict[str, Any], *keys: str) -> Array | None:
+def _vector(data: Columns, *keys: str) -> Array | None:
     if not all(k in data for k in keys):
         return None
     return np.column_stack([np.asarray(data[k], dtype=float) for k in keys])
 
 
-def _streams(name: str, instance: int, data: dict[str, Any]) -> list[Stream | None]:
+def _streams(name: str, instance: int, data: Columns) -> list[Stream | None]:
     t = _time(data)
     src = f"{name}[{instance}]"
     xyz = _vector(data, "x", "y", "z")
@@ -80,7 +90,9 @@ def _streams(name: str, instance: int, data: dict[str, Any]) -> list[Stream | No
         }[name]
         out.append(stream(role, src, instance, t, xyz, unit, _RAW))
         if "temperature" in data and name != "sensor_mag":
-            out.append(stream("temperature", src, instance, t, data["temperature"], "degC"))
+            out.append(
+                stream("temperature", src, instance, t, _floats(data["temperature"]), "degC")
+            )
     elif name == "vehicle_imu":
         dv = _vector(data, *(f"delta_velocity[{k}]" for k in range(3)))
         da = _vector(data, *(f"delta_angle[{k}]" for k in range(3)))
@@ -112,17 +124,17 @@ def _streams(name: str, instance: int, data: dict[str, Any]) -> list[Stream | No
             current = np.where(current < -0.5, np.nan, current)  # -1: not measured
             out.append(stream("current", src, instance, t, current, "A"))
         if "voltage_v" in data:
-            out.append(stream("voltage", src, instance, t, data["voltage_v"], "V"))
+            out.append(stream("voltage", src, instance, t, _floats(data["voltage_v"]), "V"))
     else:
         out.append(_throttle_or_attitude(name, instance, data, t, src))
     return out
 
 
 def _throttle_or_attitude(
-    name: str, instance: int, data: dict[str, Any], t: Array, src: str
+    name: str, instance: int, data: Columns, t: Array, src: str
 ) -> Stream | None:
     if name == "actuator_controls_0" and "control[3]" in data:
-        return stream("throttle", src, instance, t, data["control[3]"], "0-1")
+        return stream("throttle", src, instance, t, _floats(data["control[3]"]), "0-1")
     if name == "vehicle_thrust_setpoint" and "xyz[2]" in data:
         thrust = -np.asarray(data["xyz[2]"], dtype=float)
         return stream("throttle", src, instance, t, thrust, "0-1", note="-xyz[2]")

@@ -25,7 +25,7 @@ The estimator records these in ``cal.options`` (``gyro_check``, ``field_check``,
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,7 +33,16 @@ from numpy.typing import NDArray
 from ...calibration import ParameterCovariance
 from .model import Data, State
 
-__all__ = ["UNITS_STEP", "field_check", "gyro_check", "gyro_units_ratio", "turn_check"]
+__all__ = [
+    "UNITS_STEP",
+    "FieldCheck",
+    "GyroCheck",
+    "TurnCheck",
+    "field_check",
+    "gyro_check",
+    "gyro_units_ratio",
+    "turn_check",
+]
 
 Array = NDArray[np.float64]
 
@@ -41,7 +50,34 @@ Array = NDArray[np.float64]
 UNITS_STEP = 0.1
 
 
-def gyro_check(gain: Array, cov: ParameterCovariance) -> dict[str, Any]:
+class GyroCheck(TypedDict):
+    """:func:`gyro_check`'s record (``options["gyro_check"]``)."""
+
+    scale: float
+    diagonal: list[float]
+    diagonal_std: list[float]
+    negative_axes: list[int]
+    misalignment_deg: list[float]
+    misalignment_std_deg: list[float]
+
+
+class FieldCheck(TypedDict):
+    """:func:`field_check`'s record (``options["field_check"]``)."""
+
+    strength_rms: float
+    strength_worst_stretch: float
+    dip_spread_deg: float
+
+
+class TurnCheck(TypedDict):
+    """:func:`turn_check`'s record (``options["turn_check"]``)."""
+
+    step_rad_p99: float
+    max_rate: float
+    clipped_axes: list[int]
+
+
+def gyro_check(gain: Array, cov: ParameterCovariance) -> GyroCheck:
     """The gyroscope gain's scale, negative axes and misalignment per axis (module docstring)."""
     K = np.asarray(gain, dtype=float)
     names = [f"gyro.gain[{i},{j}]" for i in range(3) for j in range(3)]
@@ -88,7 +124,7 @@ def gyro_units_ratio(time: Array, mag: Array, gyro: Array) -> float | None:
     return float(np.sum(sensed) / total)
 
 
-def field_check(state: State, data: Data, length: int) -> dict[str, Any]:
+def field_check(state: State, data: Data, length: int) -> FieldCheck:
     """The calibrated field's strength (RMS relative departure from 1, largest stretch mean)
     and dip (RMS over stretches of ``length`` samples of the stretch's mean departure from the
     median, degrees, where the accelerometer reads gravity within 5 %) (module docstring)."""
@@ -102,7 +138,7 @@ def field_check(state: State, data: Data, length: int) -> dict[str, Any]:
     dip = np.degrees(np.arcsin(np.clip(np.sum(down * m, 1) / np.maximum(strength, 1e-300), -1, 1)))
     k = max(1, int(length))
     count = len(strength) // k
-    out: dict[str, Any] = {
+    out: FieldCheck = {
         "strength_rms": float(np.sqrt(np.mean((strength - 1.0) ** 2))),
         "strength_worst_stretch": 0.0,
         "dip_spread_deg": 0.0,
@@ -120,7 +156,7 @@ def field_check(state: State, data: Data, length: int) -> dict[str, Any]:
     return out
 
 
-def turn_check(time: Array, rates: Array, raw: Array) -> dict[str, Any]:
+def turn_check(time: Array, rates: Array, raw: Array) -> TurnCheck:
     """The largest turns per sample (99th percentile of ``|ω| Δt``, radians), the largest rate
     (rad/s) and the share of samples at an axis's extreme reading (a gyroscope at its range:
     the same extreme on more than 0.5 % of the samples)."""
