@@ -109,17 +109,7 @@ def test_flight_csv_through_the_command_line(tmp_path):
     from fieldcal.cli import cli
 
     flight = simulate_flight(5, seconds=60.0, interference_ut=30.0)
-    cols = flight.columns()
-    names = list(cols)
-    path = tmp_path / "flight.csv"
-    np.savetxt(
-        path,
-        np.column_stack([cols[k] for k in names]),
-        delimiter=",",
-        header=",".join(names),
-        comments="",
-        fmt="%.10g",
-    )
+    path = _write_csv(tmp_path / "flight.csv", flight.columns())
     out = tmp_path / "cal.json"
     result = CliRunner().invoke(
         cli, ["calibrate", str(path), "--sensors", "mag", "--poses", "samples", "-o", str(out)]
@@ -147,17 +137,7 @@ def test_apply_takes_the_term_off_with_each_rows_current(tmp_path):
     bias = flight.bias + flight.coefficients * flight.current.mean()  # holds at the mean
     sensor = _sensor(gain, bias, model)
     cal = Calibration(None, sensor, None, np.array([1.0, 0.0, 0.0]), np.zeros((0, 3, 3)), "x")
-    cols = flight.columns()
-    path = tmp_path / "f.csv"
-    names = ["mx", "my", "mz", "current"]
-    np.savetxt(
-        path,
-        np.column_stack([cols[k] for k in names]),
-        delimiter=",",
-        header=",".join(names),
-        comments="",
-        fmt="%.10g",
-    )
+    path = _write_csv(tmp_path / "f.csv", flight.columns(), ["mx", "my", "mz", "current"])
     out = tmp_path / "out.csv"
     apply_to_file(cal, path, out)
     data = np.genfromtxt(out, delimiter=",", names=True)
@@ -166,15 +146,7 @@ def test_apply_takes_the_term_off_with_each_rows_current(tmp_path):
     assert norm.std() < 0.01 * norm.mean()  # the 30 µT of interference are gone
     plain = np.linalg.norm(np.linalg.solve(gain, (flight.mag - bias).T).T, axis=1)
     assert plain.std() > 5 * norm.std()
-    bare = tmp_path / "bare.csv"
-    np.savetxt(
-        bare,
-        np.column_stack([cols[k] for k in names[:3]]),
-        delimiter=",",
-        header=",".join(names[:3]),
-        comments="",
-        fmt="%.10g",
-    )
+    bare = _write_csv(tmp_path / "bare.csv", flight.columns(), ["mx", "my", "mz"])
     with pytest.raises(Exception, match="no current column; name it with --current-col"):
         apply_to_file(cal, bare, tmp_path / "o2.csv")
 
@@ -183,3 +155,11 @@ def _sensor(gain, bias, model):
     from fieldcal.calibration import SensorCalibration
 
     return SensorCalibration(gain, bias, 0.09 * np.eye(3), interference=model)
+
+
+def _write_csv(path, cols, names=None):
+    """A flight's columns (``names``: those, default all) as a CSV log with a header."""
+    names = list(cols) if names is None else names
+    table = np.column_stack([cols[k] for k in names])
+    np.savetxt(path, table, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+    return path
