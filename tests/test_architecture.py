@@ -43,6 +43,7 @@ RANK = {
     "thermal": 1.9,  # a bias against temperature: the model and its evaluation
     "interference": 1.9,  # the magnetometer's term in current or throttle: the model
     "calibration": 2,
+    "folding": 2.1,  # a convention (axis map, sign, unit) folded back into a calibration
     "stats": 3,
     "logs": 3,
     "simulation": 3,

@@ -22,16 +22,17 @@ from .api import calibrate_with, check_targets, field_settings, targets_for
 from .calibration import Calibration
 from .errors import MOVING_RESTS, NO_STILL, WRONG_RATE, InputError, MovingRestsWarning
 from .findings import TemperatureIgnored
+from .folding import fold_axes
 from .geometry.frames import ACCEL_SIGNS, parse_axes
 from .gyro.integrate import effective_time
 from .gyro.scale import gyro_factor, gyro_scale_problem
-from .logs import Log, PoseSet, poses_from_log, turns_slowly
+from .logs import Log, PoseSet, poses_from_log
 from .logs.inputs import read_log
 from .logs.log_temperature import pose_temperature_samples
 from .logs.pose_finding import POSE_SOURCES, SHORT_LOG
-from .logs.pose_hints import SEPARATE_READINGS, pose_advice
+from .logs.pose_hints import pose_advice
 from .methods import estimator
-from .methods import get as get_method
+from .methods.enough_poses import check_poses as _check_poses
 from .reference import FieldReference
 from .settings import (
     OPTIONS,
@@ -43,7 +44,6 @@ from .settings import (
     renamed,
     settings_of,
 )
-from .stats.pose_stats import check_spread, stats_from_means
 from .trust.continuous_motion import trust_continuous
 from .trust.interference_stage import with_interference
 from .trust.targets import Targets
@@ -67,114 +67,6 @@ __all__ = [
 #: when the log has enough rests, else continuous when it has a gyroscope and time).
 POSE_MODES = ("auto", *POSE_SOURCES, "continuous")
 Array = NDArray[np.float64]
-
-
-def _check_poses(
-    poses: PoseSet,
-    method: str,
-    log: Log,
-    rate: float | None,
-    detection: dict[str, Any] | None = None,
-) -> None:
-    """Enough poses and orientations for ``method``, else an :class:`InputError` naming the
-    fix. ``detection``: the settings the poses were found with in ``log`` (None: the poses were
-    given): the message then says which other settings find how many
-    (:func:`~fieldcal.logs.pose_hints.pose_advice`)."""
-    n = poses.n
-    sensors = [(name, getattr(poses, name)) for name in ("accel", "mag")]
-    sensors = [(name, samples) for name, samples in sensors if samples is not None]
-    need = get_method(method).min_poses_for(len(sensors))
-    hints = None
-    if detection is not None and poses.source in ("still", "column"):
-        distinct = len({entry.get("orientation", i) for i, entry in enumerate(poses.entries)})
-        if n < need or distinct < max(need, 8 if len(sensors) == 2 else 9):
-            hints = pose_advice(log, found=poses, **detection)
-    if n < need:
-        advice = f"hold the device still in {need - n} or more further orientations"
-        if hints is None and poses.source == "still" and turns_slowly(log, rate=rate):
-            advice = "the log turns slowly without rests: use --poses windows (poses='windows')"
-        separate = poses.source == "still" and log.time is None and rate is None
-        if separate and log.gyro is None and "--poses samples" not in (hints or ""):
-            advice = f"{SEPARATE_READINGS}; or {advice}"  # Magneto-style: a reading now and then
-        why = " (the 6N readings must outnumber the 3N pose angles plus 22 sensor parameters)"
-        raise InputError(
-            f"{n} pose(s) found; the {method} method needs at least {need}"
-            + (why if len(sensors) == 2 and hints is None else "")
-            + (f": {hints}; or {advice}" if hints else f": {advice}")
-        )
-    means = {name: poses.means(name) for name, _ in sensors}
-    try:
-        check_spread(stats_from_means(means.get("accel"), means.get("mag")))
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    # one sensor alone: 9 unknowns (symmetric gain and bias), one constraint per orientation
-    need = max(need, 8 if len(sensors) == 2 else 9)
-    distinct = len({entry["orientation"] for entry in poses.entries})
-    if distinct < need:
-        raise InputError(
-            f"the {n} poses show only {distinct} distinct orientations (closer than 3° count as "
-            f"one); {'a joint' if len(sensors) == 2 else 'a single-sensor'} calibration needs at "
-            f"least {need}: "
-            + (f"{hints}; or add" if hints else "add")
-            + " poses tilted between the axes (e.g. resting on the edges and corners of a box), "
-            "not only with each axis up and down"
-        )
-
-
-def fold_axes(
-    cal: Calibration, P: Array, spec: str, sensor: str = "mag", option: str | None = None
-) -> Calibration:
-    """Express a calibration fitted on ``P @ raw`` in terms of the raw columns.
-
-    ``P @ raw = K v + b`` means ``raw = Pᵀ K v + Pᵀ b``: the gain becomes ``Pᵀ K`` and the bias
-    ``Pᵀ b``, so firmware applies the result to the readings as logged. Used for the
-    magnetometer's axis map (``spec`` recorded as ``options["mag_axes"]``) and for an
-    accelerometer that reports gravity (``P = −I``, ``options["accel_sign"]``). The bias's
-    temperature terms fold the same way, ``c_k → Pᵀ c_k`` (:mod:`fieldcal.thermal`).
-    """
-    fitted = getattr(cal, sensor)
-    if fitted is None:
-        return cal
-    Pt, A = P.T, np.abs(P.T)
-    new = dataclasses.replace(
-        fitted,
-        gain=Pt @ fitted.gain,
-        bias=Pt @ fitted.bias,
-        noise_cov=Pt @ fitted.noise_cov @ P,
-        noise_cov_std=None if fitted.noise_cov_std is None else A @ fitted.noise_cov_std @ A.T,
-        temperature=None
-        if fitted.temperature is None
-        else dataclasses.replace(
-            fitted.temperature, coefficients=fitted.temperature.coefficients @ P, std=None
-        ),
-    )
-    covariance = cal.covariance
-    if covariance is not None:
-        names = list(covariance.names)
-        T = np.eye(len(names))
-        # raw parameter (i, ...) = Σ_k Pᵀ[i, k] · fitted parameter (k, ...), per gain column
-        triples = [[f"{sensor}.gain[{r},{j}]" for r in range(3)] for j in range(3)]
-        triples.append([f"{sensor}.bias[{r}]" for r in range(3)])
-        order = 0 if fitted.temperature is None else fitted.temperature.order
-        triples += [[f"{sensor}.temp[{k},{r}]" for r in range(3)] for k in range(1, order + 1)]
-        for triple in triples:
-            if all(t in names for t in triple):
-                idx = [names.index(t) for t in triple]
-                T[np.ix_(idx, idx)] = Pt
-        covariance = covariance.transformed(T)
-    key = f"{sensor}_residual"
-    poses = tuple(
-        {**row, key: list(Pt @ np.asarray(row[key]))} if key in row else row for row in cal.poses
-    )
-    if option is None:
-        option = "mag_axes" if sensor == "mag" else "accel_sign"
-    return dataclasses.replace(
-        cal,
-        **{sensor: new},
-        covariance=covariance,
-        options={**cal.options, option: spec},
-        poses=poses,
-    )
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from fieldcal.errors import InputError
 from fieldcal.logs import load_log, pose_hints, poses_from_log
 from fieldcal.logs.pose_hints import MAX_RETRIES
 from fieldcal.logs.pose_hints import pose_hints as hints_of
+from fieldcal.methods import enough_poses
 
 HINT = re.compile(
     r"with ((?:--[a-z-]+ [^ :;]+ ?)+)(?: \(if recorded at [0-9.]+ Hz\))?: (\d+) poses"
@@ -155,6 +156,7 @@ def test_no_advice_for_poses_given(tmp_path, monkeypatch):
         raise AssertionError("no retries for poses given")
 
     monkeypatch.setattr(pipeline, "pose_advice", refuse)
+    monkeypatch.setattr(enough_poses, "pose_advice", refuse)  # the pose check's
     columns, label = _rests(9, n_poses=5)
     columns["pose"] = label
     log = load_log(_csv(tmp_path / "five.csv", columns))

@@ -91,13 +91,6 @@ def test_every_code_has_exactly_one_owning_check():
     assert set(rules.OWNER.values()) == run
 
 
-def test_a_check_cannot_own_a_code_twice_or_an_unknown_code():
-    with pytest.raises(KeyError, match="owned by"):
-        rules._owns("accuracy")(lambda case: iter(()))
-    with pytest.raises(KeyError, match="not in RULES"):
-        rules._owns("no_such_code")(lambda case: iter(()))
-
-
 def test_judge_is_a_loop_over_the_checks():
     assert len(inspect.getsource(rules.judge).splitlines()) < 40
     assert all(len(inspect.getsource(c).splitlines()) < 60 for c in rules.CHECKS)
