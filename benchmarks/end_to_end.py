@@ -56,9 +56,9 @@ print(len(sim.columns["t"]))
 #: The default path with pyarrow's reader and bulk formatting off: ``python -c NUMPY_ONLY ...``
 #: takes the command line's arguments.
 NUMPY_ONLY = (
-    "import fieldcal.logs.text as t, fieldcal.logs.apply as a; "
+    "import fieldcal.logs.text as t, fieldcal.logs.streamed_text as s; "
     "t.ARROW_MIN_BYTES = t.ARROW_MIN_BYTES_LOADED = 1 << 62; "
-    "a.ARROW_MIN_ROWS = 1 << 62; from fieldcal.cli import main; main()"
+    "s.ARROW_MIN_ROWS = 1 << 62; from fieldcal.cli import main; main()"
 )
 
 
@@ -246,9 +246,9 @@ def main() -> None:
         "files under 4 MiB keep numpy's parser, whose import is cheaper than pyarrow's). "
         "`apply` hands each block of about 100,000 lines with nothing unusual in it to pyarrow "
         "whole (it reads the sensors' fields, formats the calibrated values as `repr` would and "
-        "joins them to the lines: `logs/apply.py`, `_arrow_block`), the bytes the line-by-line "
-        "path writes. Every process runs with the bytecode cache on (filled before the first "
-        "round), as an installed fieldcal has it.",
+        "joins them to the lines: `logs/streamed_text.py`, `_arrow_block`), the bytes the "
+        "line-by-line path writes. Every process runs with the bytecode cache on (filled before "
+        "the first round), as an installed fieldcal has it.",
     ]
     first = reads["pyarrow.csv.read_csv"]
     lines += [

@@ -268,6 +268,7 @@ def test_progress_reaches_the_display(disturbed, files, tmp_path, monkeypatch):
 
     import fieldcal.cli.calibrate_cmd
     import fieldcal.logs.apply as apply_module
+    import fieldcal.logs.streamed_text as streamed_text
 
     seen = []
 
@@ -280,7 +281,7 @@ def test_progress_reaches_the_display(disturbed, files, tmp_path, monkeypatch):
     assert "dropped pose 3 (mag)" in seen and any(s.startswith("calibrating") for s in seen)
     seen.clear()
     monkeypatch.setattr(apply_module, "CHUNK_ROWS", 200)
-    monkeypatch.setattr(apply_module, "PROGRESS_SECONDS", 0.0)
+    monkeypatch.setattr(streamed_text, "PROGRESS_SECONDS", 0.0)
     run("apply", files["cal"], files["session"], "-o", tmp_path / "a.csv")
     # blocks of about 200 lines (cut by bytes at line ends): rows counted up to every data row
     counts = [int(m.replace(",", "")) for m in re.findall(r"apply: ([\d,]+) rows", " ".join(seen))]

@@ -1,65 +1,67 @@
-"""``apply`` on a large text log: the bulk path (pyarrow reads, formats and joins whole blocks
-of lines) writes the bytes the line-by-line path writes, and is the one taken."""
+"""apply_to_file's dispatch: the files it refuses in one line before reading, and the format
+chosen by the output's suffix (an NPZ's sensor array keeps its shape)."""
 
 from __future__ import annotations
-
-from unittest import mock
 
 import numpy as np
 import pytest
 from _logs import _Double
 
-import fieldcal.logs.apply as apply_module
-from fieldcal.logs.apply import apply_to_file
-
-pytest.importorskip("pyarrow", reason="pyarrow (the parquet extra) not installed")
+from fieldcal.errors import InputError
+from fieldcal.logs.apply import apply_to_file, output_format
 
 
-def _log(eol: str, ended: bool) -> str:
-    rng = np.random.default_rng(8)
-    n = 2 * apply_module.ARROW_MIN_ROWS + 123
-    values = rng.normal(size=(n, 6)) * np.array([1, 1, 1, 30, 30, 30])
-    values[5, 0] = 1e-7  # positional text out of repr's range: written by repr
-    values[6, 1] = 12345678.0  # a whole number
-    rows = [f"{0.01 * i:.2f},{','.join(f'{v:.9g}' for v in row)}" for i, row in enumerate(values)]
-    rows[7] = rows[7].replace(",", ",,", 1).replace(",,", ",", 1)  # still seven fields
-    text = eol.join(["t,ax,ay,az,mx,my,mz", *rows])
-    return text + (eol if ended else "")
+def _csv(path):
+    path.write_text("ax,ay,az\n1,2,3\n4,5,6\n")
+    return path
 
 
-@pytest.mark.parametrize(("eol", "ended"), [("\n", True), ("\r\n", False)])
-def test_bulk_blocks_write_what_the_line_by_line_path_writes(tmp_path, eol, ended):
-    src = tmp_path / "log.csv"
-    src.write_bytes(_log(eol, ended).encode())
-    fast, slow = tmp_path / "fast.csv", tmp_path / "slow.csv"
-    bulk, original = [], apply_module._arrow_block
-
-    def spy(*args):
-        bulk.append(original(*args))
-        return bulk[-1]
-
-    with mock.patch.object(apply_module, "_arrow_block", spy):
-        apply_to_file(_Double(), src, fast, chunk_rows=3 * apply_module.ARROW_MIN_ROWS // 2)
-    assert sum(b is not None for b in bulk) >= 1  # (a last block under the rows: numpy)
-    with (
-        mock.patch.object(apply_module, "_arrow_block", lambda *args: None),
-        mock.patch.object(apply_module, "_fast_chunk", lambda *args: None),
-    ):
-        apply_to_file(_Double(), src, slow, chunk_rows=1000)
-    assert fast.read_bytes() == slow.read_bytes()
-    lines = fast.read_bytes().decode().split(eol)
-    assert lines[0] == "t,ax,ay,az,mx,my,mz,ax_cal,ay_cal,az_cal,mx_cal,my_cal,mz_cal"
-    first = lines[1].split(",")
-    assert [float(v) for v in first[7:]] == [2 * float(v) for v in first[1:7]]
+def test_the_suffix_names_the_format():
+    assert [output_format(p) for p in ("a.PARQUET", "b.pq", "c.npz", "d.tsv", "e")] == [
+        "parquet",
+        "parquet",
+        "npz",
+        "text",
+        "text",
+    ]
 
 
-def test_a_block_with_an_unusual_line_goes_the_careful_way(tmp_path):
-    text = _log("\n", True)
-    at = text.index("\n", len(text) // 2)
-    src = tmp_path / "log.csv"
-    src.write_text(text[:at] + "\n# a comment in the middle" + text[at:])
-    out = tmp_path / "out.csv"
-    apply_to_file(_Double(), src, out)
-    written = out.read_text().split("\n")
-    assert "# a comment in the middle" in written
-    assert len(written) == len(text.split("\n")) + 1
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (lambda p: p / "missing.csv", "no such file"),
+        (lambda p: p, "is a folder"),
+        (lambda p: _binary(p / "bin.csv"), "not a text file"),
+    ],
+)
+def test_unreadable_sources_are_refused_in_one_line(tmp_path, make, match):
+    with pytest.raises(InputError, match=match) as refused:
+        apply_to_file(_Double(), make(tmp_path), tmp_path / "out.csv")
+    assert "\n" not in str(refused.value)
+    assert not (tmp_path / "out.csv").exists()
+
+
+def _binary(path):
+    path.write_bytes(b"ax,ay,az\n\xff\xfe\x00\x81\n")
+    return path
+
+
+def test_the_log_itself_and_a_wrong_decimal_mark_are_refused(tmp_path):
+    src = _csv(tmp_path / "log.csv")
+    with pytest.raises(InputError, match="is the input log"):
+        apply_to_file(_Double(), src, src)
+    with pytest.raises(InputError, match="decimal must be"):
+        apply_to_file(_Double(), src, tmp_path / "out.csv", decimal=";")
+    assert src.read_text() == "ax,ay,az\n1,2,3\n4,5,6\n"
+
+
+def test_an_npz_sensor_array_gets_a_calibrated_array_of_its_shape(tmp_path):
+    accel = np.arange(12.0).reshape(4, 3)
+    np.savez(tmp_path / "log.npz", accel=accel, t=np.arange(4.0))
+    used = apply_to_file(
+        _Double(), tmp_path / "log.npz", tmp_path / "out.npz", accel_cols="accel_x,accel_y,accel_z"
+    )
+    assert used == {"accel": ["accel_x", "accel_y", "accel_z"]}
+    with np.load(tmp_path / "out.npz") as out:
+        np.testing.assert_array_equal(out["accel_cal"], 2 * accel)
+        np.testing.assert_array_equal(out["accel"], accel)

@@ -19,7 +19,7 @@ from _logs import _Double
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import fieldcal.logs.apply as apply_module
+import fieldcal.logs.streamed_text as streamed_module
 from fieldcal.errors import InputError
 from fieldcal.logs import apply_to_file, read_table, text_lines
 from fieldcal.logs import text as text_module
@@ -453,8 +453,8 @@ def test_the_fast_path_reads_well_formed_logs(tmp_path, delimiter, arrow):
 
 _NO_PANDAS = """
 import sys, numpy as np
-import fieldcal.logs.apply as a, fieldcal.logs.text as t
-t.ARROW_MIN_BYTES = a.ARROW_MIN_ROWS = 0
+import fieldcal.logs.apply as a, fieldcal.logs.streamed_text as s, fieldcal.logs.text as t
+t.ARROW_MIN_BYTES = s.ARROW_MIN_ROWS = 0
 class Cal:
     accel, mag = type("Sensor", (), {"temperature": None})(), None
     correct_accel = staticmethod(lambda raw, temperature=None: 2 * np.asarray(raw))
@@ -546,9 +546,9 @@ def test_apply_vectorised_is_the_line_by_line_result(
         at = where % (len(content) + 1)
         content = content[:at] + piece + content[at:]
     src = _write(tmp_path / "log.csv", content)
-    with mock.patch.object(apply_module, "ARROW_MIN_ROWS", 0 if arrow else 1 << 62):
+    with mock.patch.object(streamed_module, "ARROW_MIN_ROWS", 0 if arrow else 1 << 62):
         fast = _apply_outcome(src, tmp_path / "fast.csv", chunk)
-    with mock.patch.object(apply_module, "_fast_chunk", lambda *args: None):
+    with mock.patch.object(streamed_module, "_fast_chunk", lambda *args: None):
         slow = _apply_outcome(src, tmp_path / "slow.csv", chunk)
     assert fast == slow
 
@@ -564,8 +564,8 @@ def test_apply_formats_in_bulk_as_repr_does():
     columns = [values, rng.normal(size=values.size), np.round(rng.normal(size=values.size), 2)]
     rows = zip(*(c.tolist() for c in columns), strict=True)
     expected = [";" + ";".join(map(repr, row)) for row in rows]
-    assert apply_module._bulk_tails(columns, ";", ".") == expected
-    commas = apply_module._bulk_tails(columns, ";", ",")
+    assert streamed_module._bulk_tails(columns, ";", ".") == expected
+    commas = streamed_module._bulk_tails(columns, ";", ",")
     assert commas == [t.replace(".", ",") for t in expected]
 
 
