@@ -18,15 +18,9 @@ from hypothesis import strategies as st
 from fieldcal.errors import InputError
 from fieldcal.logs import text as text_module
 from fieldcal.logs.text import (
-    Layout,
-    Table,
-    layout,
-    metadata_key,
-    metadata_lines,
     parse_numbers,
     read_careful,
     read_text,
-    to_float,
 )
 
 _SETTINGS = settings(
@@ -108,123 +102,6 @@ def test_both_readers_give_back_the_numbers_written(tmp_path, log, arrow):
                 assert np.array_equal(got, expected[name], equal_nan=True), (read, name)
             if "# device: IMU-7" in content:
                 assert table.metadata.get("device") == "IMU-7"
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    cells=st.lists(
-        st.one_of(
-            st.floats(allow_nan=False).map(repr),
-            st.integers(-(10**6), 10**6).map(str),
-            st.sampled_from(["", " ", " 1.5 ", "-0", "1e-320"]),
-        ),
-        min_size=1,
-        max_size=20,
-    )
-)
-def test_to_float_is_python_float_on_every_cell(cells):
-    got = to_float(np.array(cells), "ax", "log.csv")
-    expected = [float(c) if c.strip() else math.nan for c in cells]
-    assert np.array_equal(got, np.array(expected), equal_nan=True)
-    assert np.array_equal(np.signbit(got), np.signbit(expected))
-
-
-def test_to_float_names_the_first_bad_cell_and_its_row():
-    with pytest.raises(
-        InputError, match=r"column 'ax' has a non-numeric value 'x1' at data row 12"
-    ):
-        to_float(np.array(["1", "2", "x1", "y"]), "ax", "log.csv", first_row=9)
-    # '1_000' and full-width digits are float() input but no reader's number
-    for cell in ("1_000", "\uff11"):
-        with pytest.raises(InputError, match="data row 2"):
-            to_float(np.array(["1", cell]), "ax", "log.csv")
-
-
-def test_to_float_with_decimal_commas_refuses_points():
-    assert to_float(np.array(["1,5", "-0,25", ""]), "a", "p", decimal=",").tolist()[:2] == [
-        1.5,
-        -0.25,
-    ]
-    with pytest.raises(InputError, match=r"non-numeric value '1\.234,5' at data row 1"):
-        to_float(np.array(["1.234,5"]), "a", "p", decimal=",")
-
-
-def test_numeric_columns_by_dtype():
-    table = Table(
-        "log.npz",
-        ["i", "f", "b", "d"],
-        {
-            "i": np.array([1, 2], dtype=np.int16),
-            "f": np.array([0.5, 1.5], dtype=np.float32),
-            "b": np.array([True, False]),
-            "d": np.array(["2026-01-01", "2026-01-02"], dtype="datetime64[D]"),
-        },
-    )
-    assert table.numeric("i").dtype == np.float64 and table.numeric("i").tolist() == [1.0, 2.0]
-    assert table.numeric("f").dtype == np.float64 and table.numeric("f").tolist() == [0.5, 1.5]
-    with pytest.raises(InputError, match="column 'b' holds true/false values"):
-        table.numeric("b")
-    with pytest.raises(InputError, match="column 'd' holds dates and times"):
-        table.numeric("d")
-    assert Table("empty", [], {}).n_rows == 0
-
-
-@pytest.mark.parametrize(
-    ("name", "key"),
-    [("Serial Number", "serial_number"), (" Sample-Rate.Hz ", "sample_rate_hz"), ("a", "a")],
-)
-def test_metadata_key(name, key):
-    assert metadata_key(name) == key
-
-
-def test_metadata_lines_first_key_wins_and_rows_are_not_metadata():
-    lines = [
-        "# Device: IMU-0042\n",
-        "Fs,100\n",
-        "rate = 200\n",
-        "device: other\n",
-        "1,2,3\n",  # three fields: a data row, not a pair
-        'Owner; "lab 3"\n',
-    ]
-    assert metadata_lines(lines) == {
-        "device": "IMU-0042",
-        "fs": "100",
-        "rate": "200",
-        "owner": "lab 3",
-    }
-
-
-@pytest.mark.parametrize(
-    ("lines", "expected"),
-    [
-        (["t,ax\n", "0,1\n"], Layout("t,ax\n", 0, 1, ",")),
-        (["\n", "# c\n", "t;ax\n", "0;1\n"], Layout("t;ax\n", 2, 3, ";")),
-        (["t ax\n", "0 1\n"], Layout("t ax\n", 0, 1, None)),
-        (
-            ["t;ax\n", "0,5;1,25\n"],
-            Layout("t;ax\n", 0, 1, ";", ",", ("decimal commas read as points",)),
-        ),
-        (
-            ["Logger v2\n", "t,ax,ay\n", "0,1,2\n", "1,2,3\n"],
-            Layout("t,ax,ay\n", 1, 2, ",", ".", ("skipped 1 preamble line(s)",)),
-        ),
-        (
-            ["# t,ax,ay\n", "0,1,2\n", "1,2,3\n"],
-            Layout(" t,ax,ay\n", 0, 1, ",", ".", ("header read from the '#' line 1",)),
-        ),
-    ],
-)
-def test_layout_known_answers(lines, expected):
-    assert layout("log.csv", lines) == expected
-
-
-def test_layout_refusals():
-    with pytest.raises(InputError, match="the file is empty"):
-        layout("log.csv", ["\n", "# only a comment\n"])
-    with pytest.raises(InputError, match="decimal must be"):
-        layout("log.csv", ["t,ax\n"], decimal=";")
-    with pytest.raises(InputError, match="decimal=',' needs columns separated by ';'"):
-        layout("log.csv", ["t,ax\n", "0,1\n"], decimal=",")
 
 
 def test_a_points_cell_keeps_a_decimal_comma_column_as_text(tmp_path):

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from .text import Table
+from .table import Table
 
 __all__ = [
     "ATTITUDE",

@@ -26,14 +26,9 @@ from .arrow_parser import pyarrow_module
 from .dataflash import read_dataflash
 from .flight import FlightLog, flight_table
 from .sniff import not_a_log
-from .text import (
-    LONGEST_FIELD,
-    Table,
-    _check_header,
-    metadata_key,
-    read_text,
-    to_float,
-)
+from .table import Table, to_float
+from .text import LONGEST_FIELD, _check_header, read_text
+from .text_layout import metadata_key
 from .ulog import read_ulog
 
 __all__ = [

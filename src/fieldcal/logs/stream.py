@@ -59,7 +59,8 @@ from numpy.typing import NDArray
 from ..errors import InputError
 from .columns import recognise_columns
 from .log import LARGEST
-from .text import _COMMA_NUMBER, _POINT_NUMBER, Table
+from .table import Table
+from .text_layout import _COMMA_NUMBER, _POINT_NUMBER
 from .text_lines import _fields, _is_number, _sniff_delimiter
 
 __all__ = [

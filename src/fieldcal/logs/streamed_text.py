@@ -26,7 +26,8 @@ from .._files import replacing
 from ..errors import InputError
 from .arrow_parser import float_column, pyarrow_module
 from .readers import to_float
-from .text import HEAD_LINES, layout, parse_numbers
+from .text import parse_numbers
+from .text_layout import HEAD_LINES, layout
 from .text_lines import _split
 
 if TYPE_CHECKING:

@@ -1,15 +1,7 @@
-"""Delimited text logs (CSV, TSV, blank separated): where the header is, and two readers.
+"""Delimited text logs (CSV, TSV, blank separated): two readers, the careful and the fast.
 
-**Layout.** The header is the first line that is not blank and not a ``#`` comment, as long
-as it fits the data below it. When it does not (a logger's preamble such as ``Fs,100`` /
-``Logger v2`` / ``Date: ...`` above the header, or a header written as a comment,
-``# t,ax,ay,...``), the header is looked for just above the data: the line above the first
-data row whose field count matches the data rows and which is not all numbers, or else the
-last ``#`` line above the data. :func:`layout` decides from the first :data:`HEAD_LINES`
-lines that are not blank or comments, and only where the answer is unambiguous; otherwise the
-first line stays the header and the errors say what to fix. Decimal commas (``0,123;-9,81``)
-are read when asked for (``decimal=","``) or when the columns are separated by ``;`` or tabs
-and the numbers in those lines are written with commas and never with points.
+**Layout.** Where the header is, the delimiter and the decimal mark:
+:func:`~fieldcal.logs.text_layout.layout` (exported here as before).
 
 **Readers.** :func:`read_careful` is the reference: it splits every line with the csv module,
 checks every limit (:data:`LONGEST_FIELD`, duplicate names, ragged rows) and its one-line
@@ -38,7 +30,6 @@ import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
@@ -47,15 +38,20 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .arrow_parser import arrow_parser
+from .table import Table, to_float
+from .text_layout import (
+    HEAD_LINES,
+    Layout,
+    layout,
+    metadata_key,
+    metadata_lines,
+)
 from .text_lines import (
     _all_numbers,
     _fields,
     _is_data_line,
-    _is_number,
-    _numberish,
     _plain,
     _short,
-    _sniff_delimiter,
     _split,
 )
 
@@ -70,6 +66,8 @@ __all__ = [
     "Layout",
     "Table",
     "layout",
+    "metadata_key",
+    "metadata_lines",
     "parse_numbers",
     "read_careful",
     "read_text",
@@ -81,9 +79,6 @@ Array = NDArray[np.float64]
 #: Longest field of a CSV log: readings and labels are short, and numpy's text arrays would
 #: make every cell as wide as the widest one.
 LONGEST_FIELD = 1000
-#: Lines (not blank, not comments) at the top of a file in which the header is looked for and
-#: from which decimal commas and the text columns are recognised.
-HEAD_LINES = 200
 #: Bytes the fast path parses at a time (whole lines): small enough that the text in flight is
 #: a few MB beside the arrays, large enough that numpy's per-call cost does not show.
 BLOCK_BYTES = 1 << 21
@@ -100,123 +95,6 @@ ARROW_MIN_BYTES_LOADED = 0
 #: reads as fast as 16 MB (on one CPU or two) with about 40 MB less memory in flight at 10⁶ rows
 #: (pyarrow's pool keeps what a block's table used).
 ARROW_BLOCKS = 2
-
-
-# ----------------------------------------------------------------------------- the table
-@dataclass
-class Table:
-    """Columns of a log as read: numeric columns as float arrays, others as string arrays.
-
-    ``notes`` says what the reader did that the user may want to know (preamble lines skipped,
-    decimal commas read as points); ``decimal`` is the decimal mark of the text file, used when
-    a text column is read as numbers. ``metadata`` holds what the file says about itself
-    (``key: value`` lines above a text log's header, a Parquet file's key-value metadata, an
-    ``.npz`` archive's scalar arrays), keys as :func:`metadata_key` writes them.
-    """
-
-    path: str
-    names: list[str]
-    columns: dict[str, NDArray[np.generic]]
-    notes: list[str] = field(default_factory=list)
-    decimal: str = "."
-    metadata: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def n_rows(self) -> int:
-        """Rows of data (0 for a table without columns)."""
-        return 0 if not self.names else len(self.columns[self.names[0]])
-
-    def numeric(self, name: str) -> Array:
-        """Column ``name`` as floats; a one-line error naming the first non-numeric value.
-
-        Parameters
-        ----------
-        name : str
-
-        Returns
-        -------
-        ndarray of float64
-
-        Raises
-        ------
-        InputError
-            A column of booleans, dates, complex numbers ..., or text that is not numbers.
-        """
-        values = self.columns[name]
-        kind = values.dtype.kind
-        if kind == "f":  # float16/32 from .npz or .parquet too
-            return values.astype(np.float64, copy=False)
-        if kind in "iu":
-            return values.astype(float)
-        what = _NOT_READINGS.get(kind)
-        if what is not None:
-            raise InputError(
-                f"{self.path}: column {name!r} holds {what}, not numbers; give readings as "
-                "real numbers (or choose other columns)"
-            )
-        return to_float(values, name, self.path, decimal=self.decimal)
-
-
-#: dtype kinds that are not readings, and what to call them.
-_NOT_READINGS = {
-    "b": "true/false values",
-    "c": "complex numbers (take the real part if the imaginary parts are zero)",
-    "M": "dates and times",
-    "m": "time spans",
-    "V": "records",
-}
-
-
-def to_float(
-    values: NDArray[np.generic],
-    name: str,
-    path: str,
-    first_row: int = 0,
-    *,
-    decimal: str = ".",
-) -> Array:
-    """Text cells as floats: blanks are NaN; a one-line error names the first bad cell.
-
-    Parameters
-    ----------
-    values : ndarray
-        The cells (any dtype numpy can turn into text).
-    name, path : str
-        The column and the file, for the message.
-    first_row : int
-        Data-row number of ``values[0]`` minus one (rows are counted from 1).
-    decimal : {".", ","}
-        The decimal mark; with ``","`` a cell holding a point is not a number (``1.234,5``
-        would be a thousands separator, not a reading to guess at).
-
-    Returns
-    -------
-    ndarray of float64
-
-    Raises
-    ------
-    InputError
-        Naming the column, the value and its data row.
-    """
-    try:
-        original = np.char.strip(values.astype(str))
-    except UnicodeDecodeError:
-        raise InputError(
-            f"{path}: column {name!r} holds bytes that are not text; give readings as numbers"
-        ) from None
-    text = np.where(original == "", "nan", original)  # an empty field is a missing value
-    if decimal == ",":
-        text = np.where(np.char.find(text, ".") >= 0, "", np.char.replace(text, ",", "."))
-    try:
-        if not _plain(text):  # float() reads '１２' and '1_000'; the fast parsers do not
-            raise ValueError
-        return text.astype(float)
-    except ValueError:
-        bad = next((i for i, v in enumerate(text) if not _is_number(str(v))), 0)
-        raise InputError(
-            f"{path}: column {name!r} has a non-numeric value {_short(str(original[bad]))} at "
-            f"data row {first_row + bad + 1}; fix or remove that row (or choose other columns)"
-        ) from None
 
 
 # ----------------------------------------------------------------------------- small helpers
@@ -270,222 +148,6 @@ def _is_float_column(cells: Sequence[str], decimal: str) -> bool:
             else:
                 return True
     return _column(cells, decimal).dtype.kind == "f"
-
-
-# ----------------------------------------------------------------------------- layout
-@dataclass(frozen=True)
-class Layout:
-    """Where a text log's header and data are, and how its fields are written.
-
-    ``header_index`` and ``start`` count the file's lines from 0 (blank and comment lines
-    included, a byte-order mark removed): the header line, and the first line below it.
-    """
-
-    header: str
-    header_index: int
-    start: int
-    delimiter: str | None
-    decimal: str = "."
-    notes: tuple[str, ...] = ()
-
-
-def metadata_key(name: str) -> str:
-    """A metadata key as fieldcal looks it up: lower case, runs of spaces, dashes and dots as
-    ``_`` (``"Serial Number"`` → ``"serial_number"``)."""
-    return re.sub(r"[\s.\-]+", "_", name.strip().lower()).strip("_")
-
-
-#: ``key: value``, ``key = value``, or a two-field ``key,value`` line (``#`` comments too).
-_META_LINE = re.compile(r"^[#\s]*([A-Za-z][\w .\-]{0,40}?)\s*(?::|=|,|;|\t)\s*(\S.*?)\s*$")
-
-
-def metadata_lines(lines: Sequence[str]) -> dict[str, str]:
-    """The ``key: value`` pairs in the lines above a text log's header (a logger's preamble or
-    ``#`` comments such as ``# device: IMU-0042``); the first of a repeated key wins and a line
-    of more than two comma-separated fields is not metadata."""
-    out: dict[str, str] = {}
-    for line in lines:
-        match = _META_LINE.match(line)
-        if match is None or line.count(",") > 1:
-            continue
-        key, value = metadata_key(match.group(1)), match.group(2).strip().strip("\"'")
-        if key and value:
-            out.setdefault(key, value[:200])
-    return out
-
-
-#: A number written with a decimal comma, and one written with a decimal point.
-_COMMA_NUMBER = re.compile(r"[-+]?\d+,\d+(?:[eE][-+]?\d+)?")
-_POINT_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-def _head(lines: Sequence[str]) -> tuple[Sequence[str], list[int]]:
-    """The lines up to the :data:`HEAD_LINES`-th that is not blank or a comment, and where
-    those (the head's content) are."""
-    content: list[int] = []
-    for i, line in enumerate(lines):
-        if _is_data_line(line):
-            content.append(i)
-            if len(content) == HEAD_LINES:
-                return lines[: i + 1], content
-    return lines, content
-
-
-def layout(path: Path | str, lines: Sequence[str], decimal: str | None = None) -> Layout:
-    """Find the header, the delimiter and the decimal mark of a text log from its first lines.
-
-    Parameters
-    ----------
-    path : Path or str
-        The file, for messages.
-    lines : sequence of str
-        The file's first lines with their endings (a byte-order mark removed), at least up to
-        the :data:`HEAD_LINES`-th that is not blank or a comment (or the whole file).
-    decimal : {None, ".", ","}
-        The decimal mark; None recognises decimal commas (see the module docstring).
-
-    Returns
-    -------
-    Layout
-
-    Raises
-    ------
-    InputError
-        An empty file, a preamble that cannot be told from the header, ``decimal=","`` with
-        comma-separated columns, or a ``decimal`` that is not ``"."``, ``","`` or None.
-    """
-    if decimal not in (None, ".", ","):
-        raise InputError(f"decimal must be '.' or ',' (or None to recognise it); got {decimal!r}")
-    head, content = _head(lines)
-    if not content:
-        raise InputError(f"{path}: the file is empty; give a CSV with a header line and data rows")
-    first = content[0]
-    comma = decimal == ","
-    delimiter = _sniff_delimiter(head[first], comma)
-    found = None if _fits(head, content, delimiter) else _find_header(head, content, comma)
-    if found is None:
-        below = {_sniff_delimiter(head[i], comma) for i in content[1:6]}
-        if delimiter is None and len(below) == 1 and None not in below:
-            # a logger's preamble above the header ("Logger v2", "Date: ...")
-            raise InputError(
-                f"{path}: the first line {_short(head[first].strip())} is not a header (the "
-                f"lines below are separated by {below.pop()!r}); delete the lines above the "
-                "header (or start them with #)"
-            )
-        found = Layout(head[first], first, first + 1, delimiter)
-    if comma and found.delimiter is None and "," in found.header:
-        raise InputError(
-            f"{path}: decimal=',' needs columns separated by ';', tabs or blanks (--decimal ,), "
-            "but they are separated by ','; write the numbers with points or the columns with ';'"
-        )
-    return _with_decimal(head, found, decimal)
-
-
-def _fits(head: Sequence[str], content: list[int], delimiter: str | None) -> bool:
-    """Whether the first line is the header: not all numbers and as wide as most rows below.
-
-    A file the careful reader reads today always fits; one that does not fit would be refused,
-    so only those are searched for a header elsewhere.
-    """
-    header = _fields(head[content[0]], delimiter)
-    if header is None:
-        return True  # the careful reader names the line it cannot split
-    if all(_numberish(f, delimiter) for f in header):
-        return False
-    widths = [len(r) for r in (_fields(head[i], delimiter) for i in content[1:]) if r is not None]
-    if not widths:
-        return True
-    common = int(np.bincount(widths).argmax())
-    return len(header) == common
-
-
-def _find_header(head: Sequence[str], content: list[int], comma: bool) -> Layout | None:
-    for delimiter in (";", "\t", None) if comma else (",", ";", "\t", None):
-        found = _header_above_data(head, content, delimiter, comma)
-        if found is not None:
-            return found
-    return None
-
-
-def _header_above_data(
-    head: Sequence[str], content: list[int], delimiter: str | None, comma: bool
-) -> Layout | None:
-    """The header just above the data when fields are separated by ``delimiter``, if
-    unambiguous: the data rows are the run of equally wide lines at the end of the head, the
-    data starts at the first of them with numbers in every column the last row has numbers in,
-    the header is the one line of the run above it (or else the last ``#`` line above it), and
-    no line above looks like a data row (that would be data left out)."""
-    rows = [_fields(head[i], delimiter) for i in content]
-    last = rows[-1]
-    if last is None or len(last) < 2:
-        return None
-    width = len(last)
-    k = len(rows) - 1
-    while k > 0 and (row := rows[k - 1]) is not None and len(row) == width:
-        k -= 1
-    numeric = [j for j, f in enumerate(last) if _numberish(f, delimiter)]
-    if not numeric:
-        return None
-
-    def data_like(row: list[str] | None) -> bool:
-        return (
-            row is not None
-            and len(row) == width
-            and all(_numberish(row[j], delimiter) or not row[j].strip() for j in numeric)
-        )
-
-    s = next((i for i in range(k, len(rows)) if data_like(rows[i])), None)
-    if s is None or any(data_like(rows[i]) for i in range(k)):
-        return None
-    notes: list[str] = []
-    if s > k + 1:
-        return None  # two lines could be the header ("t,ax,ay" above "units,g,g")
-    if s > k:  # a line of the data's width above the first data row
-        index, preamble = content[s - 1], s - 1
-        header = head[index]
-        fields = rows[s - 1]
-    else:  # the last '#' line above the data, with no other line between
-        above = content[s - 1] if s else -1
-        hashes = [i for i in range(above + 1, content[s]) if head[i].lstrip().startswith("#")]
-        if not hashes:
-            return None
-        index, preamble = hashes[-1], s
-        header = head[index].lstrip()[1:]
-        fields = _fields(header, delimiter)
-        if data_like(fields):
-            return None  # a data row commented out
-        notes.append(f"header read from the '#' line {index + 1}")
-    if (
-        fields is None
-        or len(fields) != width
-        or _sniff_delimiter(header, comma) != delimiter
-        or all(_numberish(f, delimiter) for f in fields)
-    ):
-        return None
-    if preamble:
-        notes.insert(0, f"skipped {preamble} preamble line(s)")
-    return Layout(header, index, index + 1, delimiter, ".", tuple(notes))
-
-
-def _with_decimal(head: Sequence[str], found: Layout, decimal: str | None) -> Layout:
-    delimiter = found.delimiter
-    if decimal is not None:
-        return Layout(
-            found.header, found.header_index, found.start, delimiter, decimal, found.notes
-        )
-    if delimiter in (";", "\t"):
-        cells = [
-            f.strip()
-            for line in head[found.start :]
-            if _is_data_line(line)
-            for f in (_fields(line, delimiter) or [])
-        ]
-        if any(_COMMA_NUMBER.fullmatch(c) for c in cells) and not any(
-            _POINT_NUMBER.fullmatch(c) for c in cells
-        ):
-            notes = (*found.notes, "decimal commas read as points")
-            return Layout(found.header, found.header_index, found.start, delimiter, ",", notes)
-    return found
 
 
 # ----------------------------------------------------------------------------- careful reader
