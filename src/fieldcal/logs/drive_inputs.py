@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .flight import ATTITUDE
-from .table import Table
+from .raw_table import Table
 
 __all__ = ["CURRENT_NAMES", "THROTTLE_NAMES", "attitude_of", "drive_inputs"]
 

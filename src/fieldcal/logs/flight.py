@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
-from .table import Table
+from .raw_table import Table
 
 __all__ = [
     "ATTITUDE",

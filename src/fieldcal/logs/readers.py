@@ -25,8 +25,8 @@ from ..errors import InputError
 from .arrow_parser import pyarrow_module
 from .dataflash import read_dataflash
 from .flight import FlightLog, flight_table
+from .raw_table import Table, to_float
 from .sniff import not_a_log
-from .table import Table, to_float
 from .text import LONGEST_FIELD, _check_header, read_text
 from .text_layout import metadata_key
 from .ulog import read_ulog

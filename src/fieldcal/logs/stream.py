@@ -59,7 +59,7 @@ from numpy.typing import NDArray
 from ..errors import InputError
 from .columns import recognise_columns
 from .log import LARGEST
-from .table import Table
+from .raw_table import Table
 from .text_layout import _COMMA_NUMBER, _POINT_NUMBER
 from .text_lines import _fields, _is_number, _sniff_delimiter
 

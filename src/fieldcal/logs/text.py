@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputError
 from .arrow_parser import arrow_parser
-from .table import Table, to_float
+from .raw_table import Table, to_float
 from .text_layout import (
     HEAD_LINES,
     Layout,

@@ -1,4 +1,4 @@
-"""A reader's table (fieldcal.logs.table): to_float is Python's float on every cell a reader
+"""A reader's table (fieldcal.logs.raw_table): to_float is Python's float on every cell a reader
 takes for a number, names the first bad cell and its row; numeric columns by dtype."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fieldcal.errors import InputError
-from fieldcal.logs.table import Table, to_float
+from fieldcal.logs.raw_table import Table, to_float
 
 
 @settings(max_examples=200, deadline=None)
