@@ -33,15 +33,16 @@ import math
 import numbers
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import TypedDict
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import NO_STILL, InputError, MovingRestsWarning
 from .log import Log
-from .stillness import SHORT_LOG, Segment, StillResult, _column_sums, detect_still, scale_of
+from .orientation_labels import orientation_labels, unit_directions
+from .pose_set import MOTION_PERCENTILE, PoseEntry, PoseSet, WindowCut
+from .stillness import SHORT_LOG, Segment, detect_still, scale_of
 
 __all__ = [
     "MOTION_LIMIT",
@@ -67,8 +68,6 @@ POSE_SOURCES = ("still", "windows", "samples")
 WINDOW = (0.25, 25)
 #: Largest motion within a window, against the field's norm, for ``poses="windows"``.
 MOTION_LIMIT = 0.05
-#: The percentile over the windows of the motion that must stay under :data:`MOTION_LIMIT`.
-MOTION_PERCENTILE = 90.0
 #: ``poses="samples"``: a dense log is grouped into short windows beyond this many poses.
 MAX_SAMPLE_POSES = 3000
 #: A rate given and the time column's may differ by this much before a warning.
@@ -78,114 +77,6 @@ RATE_TOLERANCE = 0.05
 REST_DRIFT = MOTION_LIMIT / 2
 #: Fewest samples in a window (two per half for the change of the mean).
 _FEWEST = 4
-
-
-class PoseEntry(TypedDict, total=False):
-    """One pose found in a log, as written to the JSON's ``poses`` list and the summary."""
-
-    label: str  # the pose column's value (grouped logs)
-    start: int  # first data row of the pose in the file
-    stop: int  # one past its last data row
-    pieces: list[list[int]]  # [start, stop) runs merged across a short disturbance
-    samples: int
-    std: float | None  # RMS per-axis standard deviation of its readings (None: one sample)
-    orientation: int  # revisits of one orientation share a label
-
-
-@dataclass(frozen=True)
-class WindowCut:
-    """How a slowly turning log was cut into windows, and the motion measured in them.
-
-    ``drift`` and ``spread`` are the :data:`MOTION_PERCENTILE` th percentiles over the
-    windows, as fractions of the field's norm (|g| for the accelerometer, the field for a
-    magnetometer-only log): the change of the mean across a window and the spread of the
-    readings about it, white noise taken out. ``turn`` is the rate of change of the field's
-    direction at the same percentile, radians per sample (the change of the mean across half
-    a window over its length).
-    """
-
-    window: int  # samples per window
-    seconds: float | None  # the same in seconds (None without a rate)
-    count: int
-    sensor: str  # "accel" or "mag": the sensor checked
-    drift: float
-    spread: float
-    limit: float
-    turn: float = 0.0
-
-    @property
-    def motion(self) -> float:
-        """The larger of ``drift`` and ``spread``: what must stay under ``limit``."""
-        return max(self.drift, self.spread)
-
-    def to_dict(self) -> dict[str, object]:
-        per_s = None if not self.seconds else math.degrees(self.turn) * self.window / self.seconds
-        return {
-            "window": self.window,
-            "window_s": self.seconds,
-            "count": self.count,
-            "sensor": self.sensor,
-            "drift": self.drift,
-            "spread": self.spread,
-            "motion": self.motion,
-            "limit": self.limit,
-            "percentile": MOTION_PERCENTILE,
-            "turn_deg_per_sample": math.degrees(self.turn),
-            "turn_deg_s": per_s,
-        }
-
-
-@dataclass
-class PoseSet:
-    """Per-pose samples of each sensor and one entry per pose for the JSON and the summary.
-
-    ``source`` says how the poses were made: ``"column"`` (the pose column), ``"still"``
-    (still detection, ``detection``), ``"windows"`` (``windows``) or ``"samples"`` (one pose
-    per sample, or per ``windows`` when the log is dense); :meth:`record` is that for the
-    JSON. ``time_ordered``: the poses are consecutive pieces of one motion (windows, samples).
-    """
-
-    accel: list[Array] | None
-    mag: list[Array] | None
-    entries: list[PoseEntry]
-    detection: StillResult | None
-    rate: float | None
-    source: str = "still"
-    windows: WindowCut | None = None
-    _means: dict[str, Array] = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    @property
-    def n(self) -> int:
-        return len(self.entries)
-
-    def means(self, sensor: str) -> Array:
-        """(N, 3): each pose's mean reading of ``sensor`` (``"accel"`` or ``"mag"``), the
-        numbers ``p.mean(axis=0)`` gives for each pose ``p``, computed once (by running sums
-        along each column: numpy adds the rows in the same order, more slowly)."""
-        if sensor not in ("accel", "mag"):
-            raise ValueError(f"sensor must be 'accel' or 'mag', got {sensor!r}")
-        if sensor not in self._means:
-            samples: list[Array] | None = getattr(self, sensor)
-            if samples is None:
-                raise ValueError(f"no {sensor} poses")
-            self._means[sensor] = np.array([_mean(p) for p in samples]).reshape(-1, 3)
-        return self._means[sensor]
-
-    def record(self) -> dict[str, object]:
-        """How the poses were made, for the JSON: the source, its parameters, the rate."""
-        out: dict[str, object] = {"source": self.source}
-        if self.detection is not None:
-            out.update(self.detection.to_dict())
-        if self.windows is not None:
-            out.update(self.windows.to_dict())
-        if self.source == "samples":
-            out["samples_per_pose"] = max((e.get("samples", 1) for e in self.entries), default=1)
-        out["rate_hz"] = self.rate
-        return out
-
-    @property
-    def time_ordered(self) -> bool:
-        return self.source in ("windows", "samples")
 
 
 def _number(value: object) -> float:
@@ -341,7 +232,7 @@ def _check_row_labels(log: Log, rows: Rows) -> None:
     rows half the log apart (the samples of a continuous log, labelled by a counter, the time
     or a reading)."""
     sensors = [x[rows] for x in (log.accel, log.mag) if x is not None]
-    d = np.hstack([_unit_directions(x) for x in sensors])
+    d = np.hstack([unit_directions(x) for x in sensors])
     if len(d) < 4:
         return
     neighbours = float(np.median(np.linalg.norm(d[1:] - d[:-1], axis=1)))
@@ -572,7 +463,7 @@ def _turns_slowly(log: Log, hz: float | None, window: float | None, least: int =
     if not motion.moving or motion.cut.motion > MOTION_LIMIT or motion.cut.count < 2:
         return False
     # the checked sensor's directions: a turn about its field direction alone is not enough
-    directions = _unit_directions(motion.means)
+    directions = unit_directions(motion.means)
     return len(set(orientation_labels([directions]).tolist())) >= least
 
 
@@ -641,6 +532,22 @@ def poses_from_log(
         return _sample_poses(log, hz, window)
     if log.pose is not None:
         return _by_column(log, hz)
+    return _still_poses(log, hz, ref, window, min_still, trim, threshold, factor_value)
+
+
+def _still_poses(
+    log: Log,
+    hz: float | None,
+    ref: Array,
+    window: float | None,
+    min_still: float | None,
+    trim: float | None,
+    threshold: float | None,
+    factor: float,
+) -> PoseSet:
+    """The still intervals of ``ref`` (the accelerometer, else the magnetometer) as poses;
+    none found is an error saying what to change (``NO_STILL``), rests that move a warning
+    (:class:`MovingRestsWarning`, stacklevel of :func:`poses_from_log`'s caller)."""
     w = _samples(window, "window", (0.5, 25), hz, log.n)
     min_samples = _samples(min_still, "min-still", (1.0, 50), hz, log.n)
     cut = None if trim is None else _samples(trim, "still-trim", (0.0, 0), hz, log.n, zero=True)
@@ -651,7 +558,7 @@ def poses_from_log(
         min_samples=min_samples,
         trim=cut,
         threshold=threshold,
-        factor=factor_value,
+        factor=factor,
         segment=log.segment,
     )
     if not detection.segments:
@@ -684,7 +591,7 @@ def poses_from_log(
             f"log seems to turn without rests and its poses are means of moving readings; "
             f"{advice}",
             MovingRestsWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
     entries: list[PoseEntry] = []
     groups: list[Rows | slice] = []
@@ -716,14 +623,9 @@ def poses_from_log(
     return found
 
 
-def _mean(x: Array) -> Array:
-    """``x.mean(axis=0)``, the same numbers, faster (:func:`~.stillness._column_sums`)."""
-    return _column_sums(x) / len(x)
-
-
 def _orient(found: PoseSet, means: list[Array]) -> None:
     """Each entry's orientation label from the pose means of each sensor."""
-    labels = orientation_labels([_unit_directions(m) for m in means])
+    labels = orientation_labels([unit_directions(m) for m in means])
     for entry, label in zip(found.entries, labels.tolist(), strict=True):
         entry["orientation"] = label
 
@@ -871,62 +773,4 @@ def poses_orientations(poses: PoseSet) -> NDArray[np.int64]:
 
 def _directions(samples: list[Array]) -> Array:
     """Unit directions of the pose means about the mid-range point (a rough centre)."""
-    return _unit_directions(np.array([p.mean(axis=0) for p in samples]))
-
-
-def _unit_directions(points: Array) -> Array:
-    """Unit directions of ``points`` (n, 3) about their mid-range point; zero where a point is
-    the centre."""
-    scaled = points / scale_of(points)
-    centred = scaled - 0.5 * (scaled.max(axis=0) + scaled.min(axis=0))
-    norm = np.linalg.norm(centred, axis=1, keepdims=True)
-    return np.divide(centred, norm, out=np.zeros_like(centred), where=norm > 0)
-
-
-def orientation_labels(directions: list[Array], tol_deg: float = 3.0) -> NDArray[np.int64]:
-    """Label each pose with its orientation: poses closer than ``tol_deg`` in every sensor's
-    field direction share a label (0, 1, ... in order of first appearance).
-
-    Greedy in the order of the poses: the first pose not yet labelled takes every later
-    unlabelled pose within ``tol_deg`` of it. Candidates come from a grid of cells as wide as
-    the chord of ``tol_deg`` over the first sensor's directions (the 27 cells around a pose
-    hold every direction within the tolerance), so N poses take O(N log N) work, not an N x N
-    table: the cells are numbered so that the three cells stacked along z are consecutive,
-    and each pose's 27 neighbours are 9 ranges of the poses sorted by cell, found for all
-    poses at once; a pose alone in its neighbourhood takes its label without a numpy call.
-    """
-    n = len(directions[0])
-    label = np.full(n, -1, dtype=np.int64)
-    if n == 0:
-        return label
-    cos_tol = np.cos(np.radians(tol_deg))
-    chord = 2.0 * np.sin(np.radians(tol_deg) / 2.0)
-    cells = np.floor(directions[0] / chord).astype(np.int64)
-    cells -= cells.min(axis=0) - 1  # every neighbouring cell's index is >= 0 ...
-    size = cells.max(axis=0) + 2  # ... and < size
-    key = (cells[:, 0] * size[1] + cells[:, 1]) * size[2] + cells[:, 2]
-    order = np.argsort(key, kind="stable")
-    ordered = key[order]
-    lo = np.empty((n, 9), dtype=np.int64)
-    hi = np.empty((n, 9), dtype=np.int64)
-    for m, (a, b) in enumerate((a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)):
-        base = key + (a * size[1] + b) * size[2]
-        lo[:, m] = np.searchsorted(ordered, base - 1, side="left")
-        hi[:, m] = np.searchsorted(ordered, base + 1, side="right")
-    alone = ((hi - lo).sum(axis=1) == 1).tolist()
-    lows, highs = lo.tolist(), hi.tolist()
-    count = 0
-    for i in range(n):  # a loop over leaders; each compares against its neighbourhood at once
-        if label[i] >= 0:
-            continue
-        if not alone[i]:
-            ranges = [order[a:b] for a, b in zip(lows[i], highs[i], strict=True) if b > a]
-            candidates = np.concatenate(ranges)
-            candidates = candidates[label[candidates] < 0]
-            same = np.ones(len(candidates), dtype=bool)
-            for d in directions:
-                same &= d[candidates] @ d[i] > cos_tol
-            label[candidates[same]] = count
-        label[i] = count
-        count += 1
-    return label
+    return unit_directions(np.array([p.mean(axis=0) for p in samples]))

@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 from ..errors import InputError
 from .columns import DEVICE_WORDS, normalise
 from .log import Log
-from .pose_finding import PoseSet, _unit_directions, poses_from_log, turns_slowly
+from .orientation_labels import unit_directions
+from .pose_finding import PoseSet, poses_from_log, turns_slowly
 
 __all__ = [
     "MAX_RETRIES",
@@ -148,7 +149,7 @@ def _rows_are_readings(log: Log) -> bool:
     ref = log.accel if log.accel is not None else log.mag
     if ref is None or len(ref) < 8:
         return False
-    d = _unit_directions(ref)
+    d = unit_directions(ref)
     neighbours = float(np.median(np.linalg.norm(d[1:] - d[:-1], axis=1)))
     apart = float(np.median(np.linalg.norm(d - np.roll(d, len(d) // 2, axis=0), axis=1)))
     return neighbours > 0.5 * apart
