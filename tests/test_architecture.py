@@ -34,6 +34,7 @@ RANK = {
     "metrics": 1,
     "serialize": 1.5,
     "reference": 1.2,  # the Earth's field where the user is (World Magnetic Model)
+    "imu_yaml": 1.4,  # the imu.yaml of Kalibr and OpenVINS: its figures and the writer
     "settings": 1.3,  # every reading, detection, fit and trust option, declared once
     "comparison": 1.8,  # two calibrations side by side (called by the calibration)
     "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)
@@ -53,6 +54,7 @@ RANK = {
     "trust": 5,
     "planning": 5.5,  # experiment design: the next pose
     "api": 6,
+    "reading_units": 3.2,  # the accelerometer's and gyroscope's units (calibration, option, name)
     "noise": 6,  # noise characterisation of a log (Allan deviation, imu.yaml)
     "store": 6.5,  # calibrations over time: a folder by device and date
     "pipeline": 7,

@@ -48,7 +48,7 @@ import math
 import os
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -59,10 +59,19 @@ from ._frozen import ArrayDataclass
 from ._version import __version__
 from .calibration import Calibration
 from .errors import InputError
-from .logs.columns import normalise
+from .imu_yaml import IMU_YAML_FORMATS, ImuNoise, imu_yaml
 from .logs.inputs import read_log
 from .logs.log import Log
 from .logs.stillness import detect_still
+from .reading_units import (
+    SI_NAMES,
+    STANDARD_GRAVITY,
+    UNIT_OPTIONS,
+    UNITS,
+    calibration_unit,
+    column_unit,
+    option_unit,
+)
 from .stats.allan import AllanDeviation, allan_deviation
 from .stats.allan_model import NoiseModel, fit_noise_model
 
@@ -91,52 +100,9 @@ STILL_MODES = ("auto", "detect", "all")
 WHOLE_LOG = 0.9
 #: A time step longer than this many sample periods ends a stretch (a pause of the logger).
 GAP = 5.0
-#: m/s² per g (standard gravity, CGPM 1901), for accelerometers in g.
-STANDARD_GRAVITY = 9.80665
 #: Still detection: the window and the shortest rest, in seconds (as ``fieldcal calibrate``).
 _WINDOW_S, _MIN_STILL_S = 0.5, 1.0
 
-#: Units understood per sensor, with their SI factor (m/s² or rad/s per unit).
-_UNITS: dict[str, dict[str, float]] = {
-    "accel": {"g": STANDARD_GRAVITY, "mg": STANDARD_GRAVITY / 1000.0, "m/s^2": 1.0},
-    "gyro": {"deg/s": math.pi / 180.0, "rad/s": 1.0},
-}
-_ALIASES = {
-    "m/s2": "m/s^2",
-    "m/s²": "m/s^2",
-    "mps2": "m/s^2",
-    "m/s/s": "m/s^2",
-    "dps": "deg/s",
-    "°/s": "deg/s",
-    "deg/sec": "deg/s",
-    "rad/sec": "rad/s",
-}
-#: Column-name endings (normalised: ``gx_dps``, ``acc_x_m_s_2``) that state a unit.
-_COLUMN_UNITS: dict[str, tuple[tuple[str, str], ...]] = {
-    "accel": (
-        ("_m_s_2", "m/s^2"),
-        ("_m_s2", "m/s^2"),
-        ("_mps2", "m/s^2"),
-        ("_ms2", "m/s^2"),
-        ("_mg", "mg"),
-        ("_g", "g"),
-    ),
-    "gyro": (
-        ("_deg_s", "deg/s"),
-        ("_dps", "deg/s"),
-        ("_degps", "deg/s"),
-        ("_rad_s", "rad/s"),
-        ("_rads", "rad/s"),
-        ("_radps", "rad/s"),
-    ),
-}
-_SI_NAMES = {"accel": "m/s^2", "gyro": "rad/s"}
-_OPTIONS = {"accel": "accel_unit (--accel-unit)", "gyro": "gyro_unit (--gyro-unit)"}
-#: The raw units a number may give (SI units per raw unit): from a 24-bit converter's count to
-#: ten g (m/s²), from a navigation gyroscope's count to a revolution per second (rad/s); a number
-#: beyond makes noise densities no sensor has.
-PHYSICAL_UNIT = {"accel": (1e-9, 1e3), "gyro": (1e-10, 1e2)}
-_SI = {"accel": "m/s^2", "gyro": "rad/s"}
 _NAMES = {"accel": "accelerometer", "gyro": "gyroscope", "mag": "magnetometer"}
 
 
@@ -230,7 +196,7 @@ class NoiseFit(ArrayDataclass):
         """The fit and the curve as plain numbers and lists, for JSON."""
         return {
             "unit": self.unit,
-            "si_unit": _SI_NAMES.get(self.sensor) if self.si_scale is not None else None,
+            "si_unit": SI_NAMES.get(self.sensor) if self.si_scale is not None else None,
             "si_scale": self.si_scale,
             **self.model.to_dict(),
             "random_walk_resolved": self.random_walk_resolved.tolist(),
@@ -383,10 +349,10 @@ class NoiseReport(ArrayDataclass):
             if fit.si_scale is None:
                 raise InputError(
                     f"{self.source}: the {_NAMES[sensor]}'s unit is unknown; pass "
-                    f"{_OPTIONS[sensor]} (one of {', '.join(_UNITS[sensor])}, or SI units per "
+                    f"{UNIT_OPTIONS[sensor]} (one of {', '.join(UNITS[sensor])}, or SI units per "
                     "raw unit) or a calibration"
                 )
-            si = _SI_NAMES[sensor]
+            si = SI_NAMES[sensor]
             density = fit.noise_density * fit.si_scale
             walk = fit.random_walk * fit.si_scale
             walk_std = fit.random_walk_std * fit.si_scale
@@ -423,136 +389,6 @@ class NoiseReport(ArrayDataclass):
         )
 
 
-#: The formats :func:`imu_yaml` writes.
-IMU_YAML_FORMATS = ("kalibr", "openvins")
-
-
-@dataclass(frozen=True)
-class ImuNoise:
-    """The figures an ``imu.yaml`` holds, SI units; ``None`` where the source cannot give one.
-
-    Attributes
-    ----------
-    rate : float or None
-        ``update_rate`` (Hz).
-    accel_density, gyro_density : float or None
-        White-noise densities (m/s²/√Hz, rad/s/√Hz).
-    accel_walk, gyro_walk : float or None
-        Bias random walks (m/s³/√Hz, rad/s²/√Hz).
-    notes : dict
-        Key -> the comment written after its value.
-    why : dict
-        Key -> why the figure is unknown (for the refusal), for keys whose value is ``None``.
-    """
-
-    rate: float | None
-    accel_density: float | None
-    accel_walk: float | None
-    gyro_density: float | None
-    gyro_walk: float | None
-    notes: dict[str, str] = field(default_factory=dict)
-    why: dict[str, str] = field(default_factory=dict)
-
-    def figures(self) -> dict[str, float | None]:
-        """The yaml keys and their values, in Kalibr's order."""
-        return {
-            "accelerometer_noise_density": self.accel_density,
-            "accelerometer_random_walk": self.accel_walk,
-            "gyroscope_noise_density": self.gyro_density,
-            "gyroscope_random_walk": self.gyro_walk,
-            "update_rate": self.rate,
-        }
-
-
-def imu_yaml(
-    noise: ImuNoise, fmt: str = "kalibr", *, header: Sequence[str] = (), rostopic: str = "/imu0"
-) -> str:
-    """The ``imu.yaml`` of Kalibr or OpenVINS: the one writer of both, for ``fieldcal noise``
-    and ``fieldcal export``.
-
-    ``kalibr``: Kalibr's flat ``imu.yaml`` (its wiki, "IMU Noise Model" and the example
-    ``imu_adis16448.yaml``). ``openvins``: OpenVINS' ``kalibr_imu_chain.yaml``: a
-    ``%YAML:1.0`` line (OpenCV's ``FileStorage``, which OpenVINS reads it with, needs it) and the
-    ``imu0`` block with the same keys plus ``T_i_b``, ``time_offset``, ``model`` and the
-    intrinsics ``Tw``, ``R_IMUtoGYRO``, ``Ta``, ``R_IMUtoACC`` (identity) and ``Tg`` (zero): the
-    readings reach OpenVINS already corrected (``fieldcal apply``).
-
-    Parameters
-    ----------
-    noise : ImuNoise
-    fmt : {"kalibr", "openvins"}
-    header : sequence of str
-        Comment lines written at the top.
-    rostopic : str
-        The IMU's topic (``/imu0``, Kalibr's and OpenVINS' default; edit it to yours).
-
-    Returns
-    -------
-    str
-
-    Raises
-    ------
-    InputError
-        A figure is unknown: one line naming it and ``fieldcal noise``, which measures all four
-        (never written commented out, never guessed).
-    """
-    if fmt not in IMU_YAML_FORMATS:
-        raise ValueError(f"unknown imu.yaml format {fmt!r}; choose one of {IMU_YAML_FORMATS}")
-    figures = noise.figures()
-    missing = [key for key, value in figures.items() if value is None]
-    if missing:
-        why = noise.why.get(missing[0], "the source does not measure it")
-        raise InputError(
-            f"cannot write the {fmt} imu.yaml: {', '.join(missing)} unknown ({why}); "
-            f"fieldcal noise LOG --export {fmt} -o imu.yaml measures all four figures from a "
-            "still recording"
-        )
-    for key, value in figures.items():
-        if value is None or not (math.isfinite(value) and value > 0):
-            raise InputError(f"cannot write the {fmt} imu.yaml: {key} = {value!r} is not positive")
-    lines = ["%YAML:1.0", ""] if fmt == "openvins" else []
-    lines += [f"# {text}" for text in header]
-    indent = "  " if fmt == "openvins" else ""
-    if fmt == "openvins":
-        lines += ["", "imu0:", "  T_i_b:  # IMU to body: identity (the IMU is the body)"]
-        lines += [
-            f"    - [{', '.join('1.0' if i == j else '0.0' for j in range(4))}]" for i in range(4)
-        ]
-
-    def entry(key: str, value: str) -> str:
-        note = noise.notes.get(key)
-        return f"{indent}{key}: {value}" + (f"  # {note}" if note else "")
-
-    for key, value in figures.items():
-        if key != "update_rate":
-            lines.append(entry(key, f"{value:.6e}"))
-    # no comment after a text value: OpenCV's FileStorage would read it as part of the text
-    lines.append(f"{indent}# rostopic: the IMU's topic; edit it to yours")
-    lines.append(f"{indent}rostopic: {rostopic}")
-    if fmt == "openvins":
-        lines.append(f"{indent}time_offset: 0.0")
-    lines.append(entry("update_rate", f"{figures['update_rate']!r}"))
-    if fmt == "openvins":
-        lines.append(f'{indent}model: "kalibr"')
-        lines.append(
-            f"{indent}# intrinsics: identity: give OpenVINS the corrected columns `fieldcal apply` "
-            "writes (a*_cal, and g*_cal in rad/s)"
-        )
-        for name, diagonal in (
-            ("Tw", 1.0),
-            ("R_IMUtoGYRO", 1.0),
-            ("Ta", 1.0),
-            ("R_IMUtoACC", 1.0),
-            ("Tg", 0.0),
-        ):
-            lines.append(f"{indent}{name}:")
-            lines += [
-                f"{indent}  - [{', '.join(repr(diagonal) if i == j else '0.0' for j in range(3))}]"
-                for i in range(3)
-            ]
-    return "\n".join(lines) + "\n"
-
-
 def _triple(values: Array) -> str:
     return ", ".join(f"{v:.3e}" for v in values)
 
@@ -573,69 +409,6 @@ def _check_varies(values: Array, ranges: Sequence[tuple[int, int]], sensor: str,
                 "still row: no noise to measure (a stuck sensor or a placeholder column); check "
                 "the columns"
             )
-
-
-# --------------------------------------------------------------------------- units
-def _unit_name(value: str, sensor: str) -> str:
-    key = value.strip().lower().replace(" ", "")
-    key = _ALIASES.get(key, key)
-    if key not in _UNITS[sensor]:
-        raise InputError(
-            f"{_OPTIONS[sensor].split()[0]} must be one of {', '.join(_UNITS[sensor])} or a "
-            f"number (SI units per raw unit), got {value!r}"[:200]
-        )
-    return key
-
-
-def _option_unit(value: object, sensor: str) -> tuple[str, float] | None:
-    """``(unit, SI factor)`` from an ``accel_unit``/``gyro_unit`` option (``None``: not given)."""
-    if value is None:
-        return None
-    if isinstance(value, str):
-        name = _unit_name(value, sensor)
-        return name, _UNITS[sensor][name]
-    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.number))
-    number = float(value) if ok else math.nan  # type: ignore[arg-type]  # checked just above
-    if not (math.isfinite(number) and number > 0):
-        raise InputError(
-            f"{_OPTIONS[sensor].split()[0]} must be a unit name or a positive number (SI "
-            f"units per raw unit), got {value!r}"[:200]
-        )
-    low, high = PHYSICAL_UNIT[sensor]
-    if not low <= number <= high:
-        raise InputError(
-            f"{_OPTIONS[sensor].split()[0]} {number:.3g} is outside any sensor's raw unit "
-            f"({low:g} to {high:g} {_SI[sensor]} per raw unit); give a unit name or the "
-            "sensor's scale per count"[:300]
-        )
-    return "raw", number
-
-
-def _column_unit(columns: Sequence[str], sensor: str) -> str | None:
-    """The unit all three column names state (``ax_g``, ``gx_dps``), else ``None``."""
-    found = set()
-    for name in columns:
-        norm = normalise(name)
-        unit = next((u for end, u in _COLUMN_UNITS[sensor] if norm.endswith(end)), None)
-        found.add(unit)
-    return found.pop() if len(found) == 1 else None
-
-
-def _calibration_unit(cal: Calibration, sensor: str) -> tuple[str, float | None]:
-    """The unit of ``cal``'s corrected readings of ``sensor`` and its SI factor."""
-    if sensor == "gyro":
-        return "rad/s", 1.0
-    if sensor == "mag":
-        return cal.units.get("mag_calibrated", "calibrated"), None
-    magnitude = cal.gravity_norm
-    g = 1.0 if magnitude is None else float(magnitude)
-    if g == 1.0:
-        return "g", STANDARD_GRAVITY
-    if abs(g / STANDARD_GRAVITY - 1.0) < 0.02:
-        return "m/s^2", 1.0
-    if g == 1000.0:
-        return "mg", STANDARD_GRAVITY / 1000.0
-    return f"|g| = {g:g}", None
 
 
 # --------------------------------------------------------------------------- stretches
@@ -773,24 +546,63 @@ def _readings(
 ) -> tuple[Array, str, float | None, str | None]:
     """The readings analysed, their unit, SI factor and a note."""
     raw = np.asarray(getattr(log, sensor), dtype=float)
-    given = _option_unit(option, sensor) if sensor in _UNITS else None
+    given = option_unit(option, sensor) if sensor in UNITS else None
     if cal is not None and getattr(cal, sensor) is not None:
-        unit, si = _calibration_unit(cal, sensor)
+        unit, si = calibration_unit(cal, sensor)
         if given is not None and (given[0] != unit or given[0] == "raw"):
             raise InputError(
-                f"{_OPTIONS[sensor].split()[0]}={option!r}, but the calibration gives the "
-                f"{_NAMES[sensor]} in {unit}; leave {_OPTIONS[sensor].split()[0]} out"
+                f"{UNIT_OPTIONS[sensor].split()[0]}={option!r}, but the calibration gives the "
+                f"{_NAMES[sensor]} in {unit}; leave {UNIT_OPTIONS[sensor].split()[0]} out"
             )
         corrected = cal.sensor(sensor).correct(raw)
         return corrected, unit, si, f"{_NAMES[sensor]} corrected by the calibration ({unit})"
     if given is not None:
         return raw, given[0], given[1], None
-    if sensor in _UNITS:
-        unit_name = _column_unit(log.used.get(sensor, []), sensor)
+    if sensor in UNITS:
+        unit_name = column_unit(log.used.get(sensor, []), sensor)
         if unit_name is not None:
             note = f"{_NAMES[sensor]} in {unit_name}, from its column names"
-            return raw, unit_name, _UNITS[sensor][unit_name], note
+            return raw, unit_name, UNITS[sensor][unit_name], note
     return raw, "raw", None, None
+
+
+def _fit_sensor(
+    sensor: str,
+    stretches: list[Array],
+    hz: float,
+    unit: str,
+    si: float | None,
+    notes: list[str],
+    per_decade: float,
+    confidence: float,
+    tau_min: float | None,
+    tau_max: float | None,
+) -> NoiseFit:
+    """One sensor's Allan deviation over the still ``stretches`` and its noise model, with the
+    notes the fit calls for (a low-pass filter before sampling, a random walk not resolved)
+    appended to ``notes``."""
+    curve = allan_deviation(stretches, hz, per_decade=per_decade, confidence=confidence)
+    model = fit_noise_model(curve, tau_min=tau_min, tau_max=tau_max)
+    if model.low_pass:
+        notes.append(
+            f"{_NAMES[sensor]}: the shortest τ lie below the white-noise line (a low-pass "
+            f"filter before sampling); fitted from τ = {model.tau_range[0]:.3g} s"
+        )
+    fit = NoiseFit(
+        sensor=sensor,
+        unit=unit,
+        si_scale=si,
+        curve=curve.with_edf(model.edf),
+        model=model,
+    )
+    unresolved = ~fit.random_walk_resolved
+    if sensor in UNITS and np.any(unresolved):
+        notes.append(
+            f"{_NAMES[sensor]}: the random walk is not resolved on axis "
+            f"{','.join('xyz'[j] for j in np.flatnonzero(unresolved))} (fit up to "
+            f"τ = {model.tau_range[1]:.3g} s); the yaml gets its upper bound"
+        )
+    return fit
 
 
 @contextlib.contextmanager
@@ -874,36 +686,15 @@ def characterise_noise(
             )
         fits: dict[str, NoiseFit] = {}
         for sensor in chosen:
-            values, unit, si, note = _readings(
-                log, sensor, calibration, {"accel": accel_unit, "gyro": gyro_unit}.get(sensor)
-            )
+            option = {"accel": accel_unit, "gyro": gyro_unit}.get(sensor)
+            values, unit, si, note = _readings(log, sensor, calibration, option)
             if note:
                 notes.append(note)
             _check_varies(values, ranges, sensor, log.path)
-            curve = allan_deviation(
-                [values[a:b] for a, b in ranges], hz, per_decade=per_decade, confidence=confidence
+            curves = [values[a:b] for a, b in ranges]
+            fits[sensor] = _fit_sensor(
+                sensor, curves, hz, unit, si, notes, per_decade, confidence, tau_min, tau_max
             )
-            model = fit_noise_model(curve, tau_min=tau_min, tau_max=tau_max)
-            if model.low_pass:
-                notes.append(
-                    f"{_NAMES[sensor]}: the shortest τ lie below the white-noise line (a low-pass "
-                    f"filter before sampling); fitted from τ = {model.tau_range[0]:.3g} s"
-                )
-            fit = NoiseFit(
-                sensor=sensor,
-                unit=unit,
-                si_scale=si,
-                curve=curve.with_edf(model.edf),
-                model=model,
-            )
-            unresolved = ~fit.random_walk_resolved
-            if sensor in _UNITS and np.any(unresolved):
-                notes.append(
-                    f"{_NAMES[sensor]}: the random walk is not resolved on axis "
-                    f"{','.join('xyz'[j] for j in np.flatnonzero(unresolved))} (fit up to "
-                    f"τ = {model.tau_range[1]:.3g} s); the yaml gets its upper bound"
-                )
-            fits[sensor] = fit
     stretches = tuple((int(log.index[a]), int(log.index[b - 1]) + 1) for a, b in ranges)
     return NoiseReport(
         source=log.path,

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from ...calibration import Calibration
 from ...errors import InputError
-from ...noise import ImuNoise, imu_yaml
+from ...imu_yaml import ImuNoise, imu_yaml
 from .autopilot import accel_factor
 from .common import comment_header, corrections
 
