@@ -17,12 +17,8 @@ matplotlib.use("Agg")
 from fieldcal.calibration import Verdict  # noqa: E402
 from fieldcal.errors import InputError  # noqa: E402
 from fieldcal.logs import load_log, poses_from_log  # noqa: E402
-from fieldcal.output.report import (  # noqa: E402
-    FIGURES,
-    _banner_html,
-    _inverse_gain_std,
-    write_report,
-)
+from fieldcal.output.report import FIGURES, write_report  # noqa: E402
+from fieldcal.output.report_tables import banner_html, inverse_gain_std  # noqa: E402
 from fieldcal.pipeline import calibrate_log  # noqa: E402
 from fieldcal.simulation.continuous import simulate_continuous  # noqa: E402
 
@@ -113,7 +109,7 @@ def test_old_files_without_verdict_or_residuals(made, tmp_path):
 
 def test_fail_banner_escapes_reasons(made):
     verdict = Verdict("fail", ("<i>bad</i> & worse",))
-    page = _banner_html(dataclasses.replace(made["cal"], verdict=verdict))
+    page = banner_html(dataclasses.replace(made["cal"], verdict=verdict))
     assert 'class="verdict fail"' in page and "<li>&lt;i&gt;bad&lt;/i&gt; &amp; worse</li>" in page
 
 
@@ -142,7 +138,7 @@ def test_inverse_gain_errors_follow_the_delta_method(made):
         minus = np.linalg.inv(K - step.reshape(3, 3))
         J[:, p] = (plus - minus).ravel() / (2 * h)
     expected = np.sqrt(np.diag(J @ C @ J.T)).reshape(3, 3)
-    np.testing.assert_allclose(_inverse_gain_std(sensor), expected, rtol=1e-5)
+    np.testing.assert_allclose(inverse_gain_std(sensor), expected, rtol=1e-5)
 
 
 def test_report_is_written_atomically_and_never_over_its_log(made, tmp_path):

@@ -10,7 +10,7 @@ import pytest
 
 import fieldcal
 from fieldcal.calibration import Reason, Verdict
-from fieldcal.output.report import _banner_html
+from fieldcal.output.report_tables import banner_html
 from fieldcal.output.terminal import _certificate_line
 from fieldcal.simulation.handwave import simulate_handwave
 
@@ -36,11 +36,11 @@ def test_implausible_is_never_status_ok(static):
 
 def test_a_pass_with_a_low_p_does_not_claim_consistency(static):
     cal = _with(static, 0.0086)
-    banner, line = _banner_html(cal), _certificate_line(cal)
+    banner, line = banner_html(cal), _certificate_line(cal)
     assert "PASS" in banner and "consistent with its noise" not in banner
     assert "does not explain" not in line  # a PASS beside "does not explain" contradicts
     good = _with(static, 0.4)
-    assert "consistent with its noise" in _banner_html(good)
+    assert "consistent with its noise" in banner_html(good)
     assert "consistent with the noise" in _certificate_line(good)
 
 
@@ -53,4 +53,4 @@ def test_a_continuous_fit_says_what_its_certificate_means(tmp_path):
     line = _certificate_line(low)
     assert "not a χ² test for a continuous fit" in line and "does not explain" not in line
     if low.verdict.level == "pass":
-        assert "the motion determines the calibration" in _banner_html(low)
+        assert "the motion determines the calibration" in banner_html(low)
