@@ -35,6 +35,8 @@ RANK = {
     "serialize": 1.5,
     "reference": 1.2,  # the Earth's field where the user is (World Magnetic Model)
     "imu_yaml": 1.4,  # the imu.yaml of Kalibr and OpenVINS: its figures and the writer
+    "option_types": 1.25,  # what an option is: Option, Range, meta
+    "option_text": 1.27,  # an option's text parsed (noise, pose noise, field strength, wmm)
     "settings": 1.3,  # every reading, detection, fit and trust option, declared once
     "comparison": 1.8,  # two calibrations side by side (called by the calibration)
     "notebook": 1.8,  # the calibration's HTML for notebooks (called by the calibration)

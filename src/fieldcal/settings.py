@@ -29,17 +29,33 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, TypeAlias, TypeVar
+from typing import Any, TypeAlias, TypeVar
 
 from numpy.typing import ArrayLike
 
-from .errors import NOT_A_SENSOR, InputError
+from .errors import InputError
 from .geometry.frames import ACCEL_SIGNS
-from .limits import LARGEST, SMALLEST
+from .option_text import (
+    WMM_UNITS,
+    parse_field_strength,
+    parse_flag,
+    parse_noise,
+    parse_pose_noise,
+    wmm_unit,
+)
+from .option_types import (
+    MAGNITUDE,
+    NON_NEGATIVE,
+    POSITIVE,
+    Option,
+    Range,
+    Stage,
+    library_only,
+    meta,
+)
 from .reference import DIP_ALLOWANCE_DEG
 
 __all__ = [
@@ -97,7 +113,6 @@ POSE_CHOICES = ("auto", "still", "windows", "samples", "continuous")
 #: ``body_frame``: the sensor whose gain is made symmetric (Sec. 4.3).
 BODY_FRAMES = ("accel", "mag")
 
-Stage = Literal["read", "detect", "fit", "trust"]
 
 #: ``noise=``: a standard deviation (scalar or per axis) or a 3x3 covariance, for both sensors
 #: or per sensor (checked by :func:`fieldcal.stats.noise_models.noise_covariance`).
@@ -110,218 +125,12 @@ LocationSpec: TypeAlias = str | Sequence[float]
 DateSpec: TypeAlias = str | _dt.date
 
 
-@dataclass(frozen=True)
-class Range:
-    """A finite number from ``low`` (excluded when ``low_open``) to ``high``."""
-
-    low: float
-    high: float
-    low_open: bool = True
-
-    def check(self, text: object) -> float:
-        """``text`` (a string or a number) as a float in the range.
-
-        Raises
-        ------
-        ValueError
-            With the reason, e.g. ``'abc' is not a number``.
-        """
-        if isinstance(text, float):
-            number = text
-        else:
-            try:
-                number = float(str(text).strip())
-            except ValueError:
-                raise ValueError(f"{text!r} is not a number") from None
-        if not math.isfinite(number):
-            raise ValueError(f"{text!r} is not a finite number")
-        below = number <= self.low if self.low_open else number < self.low
-        if below or number > self.high:
-            low = "above" if self.low_open else "at least"
-            raise ValueError(
-                f"{text} is out of range; give a number {low} {self.low:g} and at most "
-                f"{self.high:g}"
-            )
-        return number
-
-
-#: Positive magnitudes (fields, thresholds, noise): their squares stay finite and normal.
-MAGNITUDE = Range(SMALLEST, LARGEST, low_open=False)
-#: Sample rates (Hz) and durations (seconds, or samples without a rate).
-POSITIVE = Range(0.0, 1e12)
-NON_NEGATIVE = Range(0.0, 1e12, low_open=False)
 #: Degrees of dip allowed for a local anomaly.
 _DIP_ALLOWANCE = Range(0.0, 89.0, low_open=False)
 #: A probability strictly between 0 and 1.
 _PROBABILITY = Range(0.0, 1.0 - 1e-12)
 #: A flight log's sensor instance (``--mag N``, ``--imu N``).
 _INSTANCE = Range(0.0, 255.0, low_open=False)
-
-#: What an option takes: ``text``, ``flag`` (on or off), ``switch`` (on, off or unset), a
-#: :class:`Range`, a tuple of choices (``None``: the choices of a registry the command line
-#: fills in), or a parser of its text.
-Valid = Literal["text", "flag", "switch"] | Range | tuple[str, ...] | None | Callable[[str], object]
-
-
-@dataclass(frozen=True)
-class Option:
-    """How an option is given and checked; the field's name is its library keyword.
-
-    Attributes
-    ----------
-    name : str
-        The library's keyword (filled in from the field).
-    stage : {"read", "detect", "fit", "trust"}
-        The stage that uses it (filled in from the class).
-    default : object
-        The library's default (filled in from the field).
-    flag : str
-        The command line's option (``--no-robust``); its column in a manifest drops the dashes
-        and writes ``_`` for ``-`` (``no_robust``). Empty for an option of the library alone.
-    help : str
-        The command line's help text.
-    unit : str
-        The unit of its value, ``""`` for none.
-    valid : Valid
-        What it takes (see :data:`Valid`).
-    inverted : bool
-        A flag that turns the field off (``--no-robust`` sets ``robust=False``).
-    metavar : str or None
-        The value's placeholder in the help.
-    show_default : bool
-        The command line shows the default.
-    target : str
-        The attribute of :class:`fieldcal.Targets` the option sets (``--target-tilt``:
-        ``tilt_deg``); its default (``None``) is that class's default.
-    old_flag : str
-        A former spelling of ``flag`` still taken (a deprecation note says the new one); its
-        manifest column too.
-    paths : tuple of str
-        The estimation paths that read it (:data:`ESTIMATION_PATHS`): a value given to a path
-        that does not read it is noted as unused, never silently dropped.
-    """
-
-    flag: str
-    help: str
-    unit: str = ""
-    valid: Valid = "text"
-    inverted: bool = False
-    metavar: str | None = None
-    show_default: bool = False
-    target: str = ""
-    paths: tuple[str, ...] = ("poses", "continuous")
-    old_flag: str = ""
-    name: str = ""
-    stage: Stage = "fit"
-    default: object = None
-
-    @property
-    def column(self) -> str:
-        """The option's column in a batch manifest (empty for the library's own options)."""
-        return self.flag.split("/")[0].lstrip("-").replace("-", "_")
-
-    @property
-    def old_column(self) -> str:
-        """The manifest column of :attr:`old_flag` (empty for none)."""
-        return self.old_flag.lstrip("-").replace("-", "_")
-
-    @property
-    def on_command_line(self) -> bool:
-        """Whether the command line (and a manifest) takes it."""
-        return bool(self.flag)
-
-
-def meta(flag: str, help: str, **how: Any) -> dict[str, Option]:
-    """A settings field's metadata: its :class:`Option` (see its attributes for ``how``)."""
-    return {"option": Option(flag, help, **how)}
-
-
-def library_only(help: str, **how: Any) -> dict[str, Option]:
-    """The metadata of an option of the library alone: no flag, no manifest column."""
-    return meta("", help, **how)
-
-
-def _per_sensor(text: str, one: Callable[[str], Any], example: str) -> Any:
-    if "=" not in text:
-        return one(text)
-    out: dict[str, Any] = {}
-    for part in text.split(","):
-        key, _, value = part.partition("=")
-        key = key.strip().lower()
-        if key not in ("accel", "mag"):
-            raise InputError(
-                f"{key!r} is not a sensor; name accel and/or mag, e.g. {example}",
-                code=NOT_A_SENSOR,
-                subject=repr(key),
-            )
-        out[key] = one(value.strip())
-    return out
-
-
-def parse_noise(text: str) -> float | dict[str, float]:
-    """``"0.01"`` for both sensors, or ``"accel=0.01,mag=0.2"`` per sensor.
-
-    Raises
-    ------
-    ValueError
-        With the reason.
-    """
-    parsed: float | dict[str, float] = _per_sensor(text, MAGNITUDE.check, "accel=0.01,mag=0.2")
-    return parsed
-
-
-def _pose_noise_one(text: str) -> str | float:
-    word = text.strip().lower()
-    if word in ("auto", "none"):
-        return word
-    return Range(0.0, LARGEST, low_open=False).check(word)
-
-
-def parse_pose_noise(text: str) -> str | float | dict[str, str | float]:
-    """``auto``, ``none``, a number, or ``accel=0.01,mag=auto`` (a sensor not named is
-    estimated).
-
-    Raises
-    ------
-    ValueError
-        With the reason.
-    """
-    parsed: str | float | dict[str, str | float] = _per_sensor(
-        text, _pose_noise_one, "accel=0.01,mag=auto"
-    )
-    return parsed
-
-
-#: ``field_strength`` keywords for the World Magnetic Model's intensity, and their unit.
-WMM_UNITS = {"wmm": "uT", "wmm:ut": "uT", "wmm:µt": "uT", "wmm:nt": "nT"}
-
-
-def wmm_unit(value: object) -> str | None:
-    """The unit a ``field_strength`` of ``wmm``, ``wmm:uT`` or ``wmm:nT`` asks for (``None``:
-    not one of them); the one parser of the keyword."""
-    return WMM_UNITS.get(value.strip().lower()) if isinstance(value, str) else None
-
-
-def parse_field_strength(text: str) -> float | str:
-    """``--field-strength``: a magnitude, or ``wmm`` (:data:`WMM_UNITS`) for the World Magnetic
-    Model's intensity at ``--location``; ``ValueError`` with the reason otherwise."""
-    if wmm_unit(text) is not None:
-        return text.strip()
-    if text.strip()[:1].isalpha():
-        raise ValueError(
-            f"{text!r} is neither a number nor wmm (wmm:uT, wmm:nT: the World Magnetic "
-            "Model's intensity at --location)"
-        )
-    return MAGNITUDE.check(text)
-
-
-def _flag(text: str) -> bool:
-    word = text.strip().lower()
-    if word in ("1", "true", "yes", "y", "on"):
-        return True
-    if word in ("0", "false", "no", "n", "off"):
-        return False
-    raise ValueError("give true or false")
 
 
 # ----------------------------------------------------------------------------- the table
@@ -866,7 +675,7 @@ def parse(option: Option, text: str) -> object:
     if isinstance(valid, str):  # text, flag or switch
         if valid == "text":
             return text
-        value = _flag(text)
+        value = parse_flag(text)
         return not value if option.inverted else value
     if isinstance(valid, Range):
         return valid.check(text)
