@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -149,19 +150,61 @@ def fit_gyro(
     )
     data = build_segments(t, raw, rows, link, times, hold)
     full = SegmentModel(data, method, n_poses, observed, Q)
-    guess = guess_matrix(gain_guess, unit)
-    if method == "rotations":
-        M0 = start_rotations(data, means, full.observed, guess)
-    else:
-        M0 = start_gravity(data, means, observed, guess, n_poses)
+    M0 = _start(full, means, observed, guess_matrix(gain_guess, unit))
     x = np.concatenate([M0.ravel(), means.ravel()])
     pose = _pose_errors(method, observed, rotation_cov, gravity_body, gravity_cov)
-    d, m = full.d, len(link)
-    if pose.estimated and d * m - 9 < 1:
-        raise InputError(_no_residual_message(m, method))
+    if pose.estimated and full.d * len(link) - 9 < 1:
+        raise InputError(_no_residual_message(len(link), method))
     motion = (t, raw, rows, link, times, hold)
     rounds = Rounds(full, motion, pose, prior_cov, means, max_iter, on_progress)
     x, scale2, unobservable = _fit(rounds, x, M0, method, allow_partial)
+    stats = _PoseRates(unit, n_poses, means, times, durations, noise_cov, Q, slope, drift_p, wander)
+    return _gyro_fit(rounds, pose, stats, x, M0, scale2, unobservable, method, full.d)
+
+
+def _start(full: SegmentModel, means: Array, observed: Array, guess: Array | None) -> Array:
+    """The linear start of the gain's inverse: from the poses' rotations, or from gravity's
+    directions (:mod:`.start`)."""
+    if full.method == "rotations":
+        return start_rotations(full.data, means, full.observed, guess)
+    return start_gravity(full.data, means, observed, guess, full.n)
+
+
+@dataclass(frozen=True)
+class _PoseRates:
+    """What the poses' readings say before the fit, for the result: the unit (raw per rad/s
+    of the start), each pose's mean rate, time, duration, the rate noise, and the bias drift
+    (slope, its p-value, the wander between poses)."""
+
+    unit: float
+    n_poses: int
+    means: Array
+    times: Array
+    durations: Array
+    noise_cov: Array
+    Q: Array
+    slope: Array | None
+    drift_p: float | None
+    wander: float
+
+
+def _gyro_fit(
+    rounds: Rounds,
+    pose: PoseErrors,
+    stats: _PoseRates,
+    x: Array,
+    M0: Array,
+    scale2: float,
+    unobservable: tuple[str, ...],
+    method: str,
+    d: int,
+) -> GyroFit:
+    """The fitted gain and bias with their covariance and the checks the verdict reads (the
+    segments' χ² and p-value, a widening when a given pose covariance is rejected, the
+    segments refused), in the readings' units."""
+    unit, n_poses, means, times = stats.unit, stats.n_poses, stats.means, stats.times
+    durations, noise_cov, Q = stats.durations, stats.noise_cov, stats.Q
+    slope, drift_p, wander = stats.slope, stats.drift_p, stats.wander
     final = rounds.model_of(rounds.used())
     ev = final.evaluate(x)
     dof = d * len(rounds.used()) - 9
