@@ -404,11 +404,8 @@ def detect_still(
     """
     raw = _readings(accel, "accel")
     n = len(raw)
-    length = _real(window, "window", minimum=1.0)
-    window = max(3, _count(length, "window", 1, n) | 1)
-    min_samples = _count(min_samples, "min_samples", 1, n)
-    trim = window // 4 if trim is None else _count(trim, "trim", 0, n)
-    max_gap = window if max_gap is None else _count(max_gap, "max_gap", 0, n)
+    counts = _sample_counts(window, min_samples, trim, max_gap, n)
+    trim, min_samples, window, max_gap = counts
     factor = _real(factor, "factor", minimum=0.0, inclusive=False)
     floor_quantile = _real(floor_quantile, "floor_quantile", minimum=0.0)
     if floor_quantile > 1:
@@ -416,12 +413,6 @@ def detect_still(
     merge_sigma = _real(merge_sigma, "merge_sigma", minimum=0.0)
     if threshold is not None:
         threshold = _real(threshold, "threshold", minimum=0.0, inclusive=False)
-    if n < window:
-        raise InputError(
-            f"the log has {n} samples, fewer than one detection window "
-            f"({max(window, length):.6g}); record longer or give a shorter window",
-            code=SHORT_LOG,
-        )
     breaks = _bounds(n, _segments(segment, n))
     bounds = _windows(n, window, breaks)
     # readings of order one in any unit: every statistic below is in these scaled units
@@ -446,36 +437,54 @@ def detect_still(
         )
     still = var_a < thr_a
     if gyro is not None:
-        rates = _readings(gyro, "gyro")
-        if len(rates) != n:
-            raise InputError(f"gyro has {len(rates)} samples but accel has {n}; pass equal rows")
-        unit = scale_of(rates)
-        rates = rates / unit
-        head = rates[: _HEAD + 1].copy()
-        # the gyro's bias is its median over the samples the accelerometer calls still
-        bias = _median_columns(rates, still if np.any(still) else None)
-        local = _local_bias(rates, still, window, bias)
-        d = np.subtract(rates, bias, out=rates)  # the scaled rates are made again if needed
-        np.multiply(d, d, out=d)  # as ** 2; the axes summed as .sum(axis=1) sums them
-        energy = _moving_mean(d[:, 0] + d[:, 1] + d[:, 2], window, bounds)
-        del rates, d
-        gyro_readings = gyro
-        floor_g = _floor(
-            energy, floor_quantile, head, lambda: _readings(gyro_readings, "gyro") / unit
-        )
-        if local is not None and local[1] > (np.float64(factor) ** 2 - 1.0) * floor_g:
-            # the bias drifts (a board warming up) by enough to push a resting window past the
-            # threshold on its own: measure the rotation against the bias of the time, or the
-            # cold poses read as turning. A smaller departure cannot hide a pose, and on
-            # hand-held logs it is mostly the hand's motion in the block medians (measured: 4x
-            # the floor on the ICM-20948 session 3; 12-13x on a simulated 20 K warm-up).
-            d = _readings(gyro, "gyro") / unit - local[0]
-            energy = _moving_mean(np.einsum("ij,ij->i", d, d), window, bounds)
-            floor_g = _floor(energy, floor_quantile, head, lambda: d)
-            del d
-        with np.errstate(over="ignore"):
-            still &= energy < np.float64(factor) ** 2 * floor_g
+        still &= _turns_little(gyro, still, window, bounds, floor_quantile, factor)
 
+    segments = _still_segments(raw, accel, sums, still, breaks, counts, thr_a, floor_a, merge_sigma)
+    return StillResult(
+        segments=tuple(segments),
+        threshold=reported[0],
+        noise_floor=reported[1],
+        window=window,
+        min_samples=int(min_samples),
+        trim=trim,
+    )
+
+
+def _sample_counts(
+    window: float, min_samples: float, trim: float | None, max_gap: float | None, n: int
+) -> tuple[int, int, int, int]:
+    """The detector's numbers of samples checked and rounded (the window made odd, the trim a
+    quarter window and the gap one window by default): ``(trim, min_samples, window,
+    max_gap)``; a log shorter than one window is refused (``SHORT_LOG``)."""
+    length = _real(window, "window", minimum=1.0)
+    window = max(3, _count(length, "window", 1, n) | 1)
+    min_samples = _count(min_samples, "min_samples", 1, n)
+    trim = window // 4 if trim is None else _count(trim, "trim", 0, n)
+    max_gap = window if max_gap is None else _count(max_gap, "max_gap", 0, n)
+    if n < window:
+        raise InputError(
+            f"the log has {n} samples, fewer than one detection window "
+            f"({max(window, length):.6g}); record longer or give a shorter window",
+            code=SHORT_LOG,
+        )
+    return trim, min_samples, window, max_gap
+
+
+def _still_segments(
+    raw: Array,
+    accel: Array,
+    sums: tuple[Array, Array],
+    still: NDArray[np.bool_],
+    breaks: NDArray[np.int64],
+    counts: tuple[int, int, int, int],
+    thr_a: float,
+    floor_a: float,
+    merge_sigma: float,
+) -> list[Segment]:
+    """The still windows as rests: runs trimmed (``counts``: trim, min_samples, window,
+    max_gap), a slowly drifting run cut into pieces that are still as a whole, the runs of
+    one pose merged across a short disturbance, the rests of at least ``min_samples`` kept."""
+    trim, min_samples, window, max_gap = counts
     runs = _runs(still, breaks)
     runs[:, 0] += trim
     runs[:, 1] -= trim
@@ -491,14 +500,48 @@ def detect_still(
     segments = [
         s for s in (_segment(raw, runs[g], work) for g in groups) if s.samples >= min_samples
     ]
-    return StillResult(
-        segments=tuple(segments),
-        threshold=reported[0],
-        noise_floor=reported[1],
-        window=window,
-        min_samples=int(min_samples),
-        trim=trim,
-    )
+    return segments
+
+
+def _turns_little(
+    gyro: Array,
+    still: NDArray[np.bool_],
+    window: int,
+    bounds: tuple[NDArray[np.int64], NDArray[np.int64]] | None,
+    floor_quantile: float,
+    factor: float,
+) -> NDArray[np.bool_]:
+    """The windows quiet in rotation: the gyroscope's energy about its bias (its median over
+    the samples the accelerometer calls ``still``, or the bias of the time when it drifts)
+    under ``factor``² times its noise floor."""
+    n = len(still)
+    rates = _readings(gyro, "gyro")
+    if len(rates) != n:
+        raise InputError(f"gyro has {len(rates)} samples but accel has {n}; pass equal rows")
+    unit = scale_of(rates)
+    rates = rates / unit
+    head = rates[: _HEAD + 1].copy()
+    # the gyro's bias is its median over the samples the accelerometer calls still
+    bias = _median_columns(rates, still if np.any(still) else None)
+    local = _local_bias(rates, still, window, bias)
+    d = np.subtract(rates, bias, out=rates)  # the scaled rates are made again if needed
+    np.multiply(d, d, out=d)  # as ** 2; the axes summed as .sum(axis=1) sums them
+    energy = _moving_mean(d[:, 0] + d[:, 1] + d[:, 2], window, bounds)
+    del rates, d
+    gyro_readings = gyro
+    floor_g = _floor(energy, floor_quantile, head, lambda: _readings(gyro_readings, "gyro") / unit)
+    if local is not None and local[1] > (np.float64(factor) ** 2 - 1.0) * floor_g:
+        # the bias drifts (a board warming up) by enough to push a resting window past the
+        # threshold on its own: measure the rotation against the bias of the time, or the
+        # cold poses read as turning. A smaller departure cannot hide a pose, and on
+        # hand-held logs it is mostly the hand's motion in the block medians (measured: 4x
+        # the floor on the ICM-20948 session 3; 12-13x on a simulated 20 K warm-up).
+        d = _readings(gyro, "gyro") / unit - local[0]
+        energy = _moving_mean(np.einsum("ij,ij->i", d, d), window, bounds)
+        floor_g = _floor(energy, floor_quantile, head, lambda: d)
+        del d
+    with np.errstate(over="ignore"):
+        return np.asarray(energy < np.float64(factor) ** 2 * floor_g)
 
 
 def _var(c1: Array, c2: Array, runs: NDArray[np.int64]) -> tuple[Array, Array]:
