@@ -10,6 +10,7 @@ write ``<out>/<device>/cal.json`` atomically, return a summary row),
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import inspect
 import os
@@ -141,6 +142,87 @@ def _absolute(spec: LogSpec) -> LogSpec:
     return LogSpec(os.path.abspath(spec.log), spec.device, spec.options, spec.source)
 
 
+@dataclass
+class _Plan:
+    """A batch under way: its logs, the folder, each log's summary row (``None``: not yet),
+    the calibrations kept, and the tasks left to run (the logs a resumed batch did before are
+    taken from the folder)."""
+
+    specs: list[LogSpec]
+    folder: Path | None
+    rows: list[SummaryRow | None]
+    calibrations: dict[str, Calibration]
+    tasks: list[Task]
+    keep: bool
+    on_result: Callable[[Mapping[str, Cell]], None] | None
+
+    @property
+    def out(self) -> str | None:
+        return None if self.folder is None else str(self.folder)
+
+    def add(
+        self, done: Mapping[str, SummaryRow], options: Mapping[str, object], common: Task
+    ) -> None:
+        """A task for each log not ``done`` before (``common``: what every task shares), the
+        rows of those done taken as they were."""
+        for i, spec in enumerate(self.specs):
+            if spec.log in done:
+                self.rows[i] = done[spec.log]
+                if self.keep and self.folder is not None:
+                    text = (self.folder / str(done[spec.log]["device"]) / CAL_FILE).read_text(
+                        encoding="utf-8"
+                    )
+                    self.calibrations[spec.log] = Calibration.from_json(text)
+                if self.on_result is not None:
+                    self.on_result(done[spec.log])
+                continue
+            settings = LogSettings.of({**options, **spec.options})
+            self.tasks.append(
+                dataclasses.replace(
+                    common, index=i, log=spec.log, device=spec.device, settings=settings
+                )
+            )
+
+    def collect(self, results: Iterator[JobResult]) -> BatchResult:
+        """Each result's row and calibration as it comes; on Ctrl-C the summary of what was
+        done is written before stopping."""
+        rows, folder = self.rows, self.folder
+        files: list[Path] = []
+        try:
+            for result in results:
+                rows[result.index] = result.row
+                if result.calibration is not None:
+                    self.calibrations[self.specs[result.index].log] = result.calibration
+                if self.on_result is not None:
+                    self.on_result(result.row)
+        except KeyboardInterrupt:
+            if folder is not None:  # what was done is kept: the summary of those, then stop
+                # workers may have finished logs whose rows had not come back yet: on disk
+                on_disk = _done_before(folder)
+                for i, spec in enumerate(self.specs):
+                    if rows[i] is None and spec.log in on_disk:
+                        rows[i] = on_disk[spec.log]
+                write_summary([r for r in rows if r is not None], folder)
+            raise
+        finished = tuple(r for r in rows if r is not None)
+        if folder is not None:
+            files = write_summary(finished, folder)
+        skipped = len(self.specs) - len(self.tasks)
+        return BatchResult(finished, self.calibrations, tuple(files), skipped)
+
+
+def _results(
+    tasks: list[Task], scheduler: object, jobs: int | None, group: int
+) -> Iterator[JobResult]:
+    """The tasks run by Dask's ``scheduler``, in this process (one job or one task), or in
+    ``jobs`` processes (default :func:`~.executors.default_jobs`)."""
+    if scheduler is not None:
+        return run_dask(tasks, scheduler, group)
+    if (jobs or default_jobs()) == 1 or len(tasks) <= 1:
+        return run_sequential(tasks, group)
+    return run_processes(tasks, min(jobs or default_jobs(), len(tasks)), group)
+
+
 def calibrate_many(
     logs: str | os.PathLike[str] | Iterable[str | os.PathLike[str] | LogSpec],
     *,
@@ -230,60 +312,10 @@ def calibrate_many(
         _prepare(folder, resume=resume, force=force)
         done = _done_before(folder) if resume else {}
     stamp = created or _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat()
-    token = secrets.token_hex(6)
-    rows: list[SummaryRow | None] = [None] * len(specs)
-    calibrations: dict[str, Calibration] = {}
-    tasks = []
-    for i, spec in enumerate(specs):
-        if spec.log in done:
-            rows[i] = done[spec.log]
-            if keep_calibrations and folder is not None:
-                text = (folder / str(done[spec.log]["device"]) / CAL_FILE).read_text(
-                    encoding="utf-8"
-                )
-                calibrations[spec.log] = Calibration.from_json(text)
-            if on_result is not None:
-                on_result(done[spec.log])
-            continue
-        tasks.append(
-            Task(
-                index=i,
-                log=spec.log,
-                device=spec.device,
-                settings=LogSettings.of({**options, **spec.options}),
-                out=None if folder is None else str(folder),
-                exports=tuple(exports),
-                created=stamp,
-                batch=token,
-                force=force,
-                keep=keep_calibrations,
-            )
-        )
-    results: Iterator[JobResult]
-    if scheduler is not None:
-        results = run_dask(tasks, scheduler, group)
-    elif (jobs or default_jobs()) == 1 or len(tasks) <= 1:
-        results = run_sequential(tasks, group)
-    else:
-        results = run_processes(tasks, min(jobs or default_jobs(), len(tasks)), group)
-    files: list[Path] = []
-    try:
-        for result in results:
-            rows[result.index] = result.row
-            if result.calibration is not None:
-                calibrations[specs[result.index].log] = result.calibration
-            if on_result is not None:
-                on_result(result.row)
-    except KeyboardInterrupt:
-        if folder is not None:  # what was done is kept: the summary of those, then stop
-            # workers may have finished logs whose rows had not come back yet: on disk
-            on_disk = _done_before(folder)
-            for i, spec in enumerate(specs):
-                if rows[i] is None and spec.log in on_disk:
-                    rows[i] = on_disk[spec.log]
-            write_summary([r for r in rows if r is not None], folder)
-        raise
-    finished = tuple(r for r in rows if r is not None)
-    if folder is not None:
-        files = write_summary(finished, folder)
-    return BatchResult(finished, calibrations, tuple(files), len(specs) - len(tasks))
+    plan = _Plan(specs, folder, [None] * len(specs), {}, [], keep_calibrations, on_result)
+    batch = secrets.token_hex(6)
+    common = Task(
+        -1, "", None, LogSettings(), plan.out, (*exports,), stamp, batch, force, plan.keep
+    )
+    plan.add(done, options, common)
+    return plan.collect(_results(plan.tasks, scheduler, jobs, group))
