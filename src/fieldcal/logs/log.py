@@ -425,20 +425,12 @@ def load_log(
         for ROS bags (:func:`fieldcal.logs.rosbag.read_bag`); ignored for a table already read.
     """
     _check_load_options(drop_nan, split_on_reset, need, time_col, pose_col)
-    if temp_col is not None and not isinstance(temp_col, str):
-        raise InputError(f"temp_col must be a column name, got {temp_col!r}")
-    if sensors not in (None, "accel", "mag", "both"):
-        raise InputError(f"sensors must be 'accel', 'mag' or 'both', got {sensors!r}"[:200])
+    _check_choices(temp_col, sensors)
     current_col, throttle_col = reading.pop("current_col", None), reading.pop("throttle_col", None)
     table = _open_table(path, reading)
     used = _pick_columns(table, accel_cols, mag_cols, gyro_cols, time_col, pose_col, need, temp_col)
     used = _chosen_sensors(table, used, sensors, accel_cols is not None, mag_cols is not None)
-    # one (n, 3) array per sensor, stacked once; rows are selected only when some are dropped
-    data: dict[str, Array] = {
-        role: np.column_stack([table.numeric(c) for c in used[role]])
-        for role in ("accel", "mag", "gyro")
-        if role in used
-    }
+    data = _sensor_arrays(table, used)
     time = table.numeric(used["time"][0]) if "time" in used else None
     pose = table.columns[used["pose"][0]] if "pose" in used else None
     data, time, pose, index, n_bad = _finite_rows(table, used, data, time, pose, drop_nan)
@@ -448,26 +440,9 @@ def load_log(
     if time is not None:
         time, segment, time_notes = _time_axis(time, used["time"][0], index, table, split_on_reset)
         notes += time_notes
-    temperature, ignored = None, None
-    if "temperature" in used:
-        name = used["temperature"][0]
-        temperature = table.numeric(name)[index]
-        why = unusable_temperature(temperature)
-        if why is not None:
-            if temp_col is not None and not ignore_bad_temp:
-                raise InputError(
-                    f"the temperature column {name!r} {why}; give it in °C with finite values "
-                    "(or pass --ignore-bad-temp to calibrate without temperature terms)"
-                )
-            notes.append(f"temperature column {name!r} {why}: ignored")
-            temperature, ignored = None, (name, why)
+    temperature, ignored = _temperature(table, used, index, temp_col, ignore_bad_temp, notes)
     inputs, input_notes = drive_inputs(table, index, current_col, throttle_col)
     notes += input_notes
-    taken = [c for cols in used.values() for c in cols]
-    labels = {
-        name: table.columns[name] if index.size == table.n_rows else table.columns[name][index]
-        for name in label_columns(table.names, exclude=taken)
-    }
     return Log(
         path=table.path,
         accel=data.get("accel"),
@@ -484,10 +459,66 @@ def load_log(
         metadata=dict(getattr(table, "metadata", {})),
         temperature=temperature,
         temperature_ignored=ignored,
-        labels=labels,
+        labels=_labels(table, used, index),
         inputs=inputs,
         attitude=attitude_of(table, index),
     )
+
+
+def _sensor_arrays(table: Table, used: dict[str, list[str]]) -> dict[str, Array]:
+    """One (n, 3) array per sensor, stacked once (rows are selected later, only when some are
+    dropped)."""
+    return {
+        role: np.column_stack([table.numeric(c) for c in used[role]])
+        for role in ("accel", "mag", "gyro")
+        if role in used
+    }
+
+
+def _labels(
+    table: Table, used: dict[str, list[str]], index: NDArray[np.int64]
+) -> dict[str, NDArray[Any]]:
+    """The text columns no role took (a shot name, a device), in the rows kept."""
+    taken = [c for cols in used.values() for c in cols]
+    return {
+        name: table.columns[name] if index.size == table.n_rows else table.columns[name][index]
+        for name in label_columns(table.names, exclude=taken)
+    }
+
+
+def _check_choices(temp_col: object, sensors: object) -> None:
+    """``temp_col`` a column name and ``sensors`` one of the choices, else a one-line error."""
+    if temp_col is not None and not isinstance(temp_col, str):
+        raise InputError(f"temp_col must be a column name, got {temp_col!r}")
+    if sensors not in (None, "accel", "mag", "both"):
+        raise InputError(f"sensors must be 'accel', 'mag' or 'both', got {sensors!r}"[:200])
+
+
+def _temperature(
+    table: Table,
+    used: dict[str, list[str]],
+    index: NDArray[np.int64],
+    temp_col: str | None,
+    ignore_bad_temp: bool,
+    notes: list[str],
+) -> tuple[Array | None, tuple[str, str] | None]:
+    """The temperature column's values in the rows kept, or ``None`` and ``(column, why)`` when
+    they cannot be temperatures in °C (a column named by ``temp_col`` is then refused, unless
+    ``ignore_bad_temp``; one recognised by name is ignored with a note)."""
+    if "temperature" not in used:
+        return None, None
+    name = used["temperature"][0]
+    temperature = table.numeric(name)[index]
+    why = unusable_temperature(temperature)
+    if why is not None:
+        if temp_col is not None and not ignore_bad_temp:
+            raise InputError(
+                f"the temperature column {name!r} {why}; give it in °C with finite values "
+                "(or pass --ignore-bad-temp to calibrate without temperature terms)"
+            )
+        notes.append(f"temperature column {name!r} {why}: ignored")
+        return None, (name, why)
+    return temperature, None
 
 
 def unusable_temperature(values: Array) -> str | None:
