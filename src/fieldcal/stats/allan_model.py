@@ -334,13 +334,7 @@ def fit_noise_model(
             break
         first = int(np.flatnonzero(rows)[0])
         _, ahead = fit(float(later.min()))
-        below = False
-        for j, (p, *_) in enumerate(ahead):
-            model = float(X[first] @ p)
-            relative = y[first, j] / model - 1.0 if model > 0 else 0.0
-            sd = math.sqrt(2.0 / max(float(edfs[first, 0]), 1.0))
-            below |= relative < -max(_LOW_PASS, 3.0 * math.sqrt(2.0) * sd)
-        if not below:
+        if not _below_model(ahead, X[first], y[first], float(edfs[first, 0])):
             break
         low, low_pass = float(later.min()), True
         rows, fits = fit(low)
@@ -368,3 +362,16 @@ def fit_noise_model(
         reduced_chi2=frozen_array(chi2),
         low_pass=low_pass,
     )
+
+
+def _below_model(ahead: list[_AxisFit], x: Array, y: Array, edf: float) -> bool:
+    """Whether the shortest τ (design row ``x``, Allan variances ``y`` per axis, ``edf`` its
+    white-noise degrees of freedom) lies below the model fitted from the next octaves on
+    (``ahead``) on some axis, by more than :data:`_LOW_PASS` and three standard errors."""
+    below = False
+    for j, (p, *_) in enumerate(ahead):
+        model = float(x @ p)
+        relative = y[j] / model - 1.0 if model > 0 else 0.0
+        sd = math.sqrt(2.0 / max(edf, 1.0))
+        below |= relative < -max(_LOW_PASS, 3.0 * math.sqrt(2.0) * sd)
+    return below
