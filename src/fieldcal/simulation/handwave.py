@@ -211,21 +211,7 @@ def simulate_handwave(
     # drawn sensors
     d = _draw_sensors(rng, rate, gravity, field_strength, dip_deg, noise_scale, gyro_noise)
     Ka, ba, Km, bm, dip, sa, sm, Kg, bg, sg = d
-    # the motion
-    stretches: list[tuple[float, float]] = []
-    if rests > 0:
-        centres = (np.arange(rests) + 0.5) * seconds / rests
-        stretches = [(c - rest_seconds / 2, c + rest_seconds / 2) for c in centres]
-    env_fine = _envelope(fine, stretches, ramp=0.5)
-    w_fine, _ = _smooth(rng, fine, 6, (0.1, 1.0), turn_rate)
-    w_fine = w_fine * np.asarray(axes, dtype=float) * env_fine[:, None]
-    R0 = random_rotations(1, rng)[0]
-    # dR/dt = −[ω]× R, the rate held at the middle of each fine step
-    mid = 0.5 * (w_fine[1:] + w_fine[:-1]) * np.diff(fine)[:, None]
-    rel = ordered_products(exp_so3(-mid))
-    R = np.concatenate([R0[None], rel @ R0])[::_FINE]
-    omega = w_fine[::_FINE]
-    env = env_fine[::_FINE]
+    R, omega, env = _motion(rng, fine, seconds, rests, rest_seconds, turn_rate, axes)
     _, acc = _smooth(rng, t, 6, (0.3, 2.0), 1.0)
     # position amplitude chosen so the acceleration has the requested RMS per axis
     acc = acc / max(float(np.sqrt(np.mean(acc**2))), 1e-12) * shake * env[:, None]
@@ -245,16 +231,13 @@ def simulate_handwave(
         columns["temp"] = temp
     provenance = {"seed": seed, "seconds": seconds, "rate": rate, "shake": shake}
     truth = _truth(d, R, g_world, h_world, models, provenance)
-    still = env < 1e-9
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
-    rest_rows = tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
     return HandwaveLog(
         columns=columns,
         truth=truth,
         rotations=R,
         body_acceleration=acc,
         omega=omega,
-        rests=rest_rows,
+        rests=_rest_rows(env),
         rate=float(rate),
         gravity=float(gravity),
         field_strength=float(field_strength),
@@ -275,6 +258,41 @@ class _Drawn(NamedTuple):
     Kg: Array
     bg: Array
     sg: float
+
+
+def _motion(
+    rng: np.random.Generator,
+    fine: Array,
+    seconds: float,
+    rests: int,
+    rest_seconds: float,
+    turn_rate: float,
+    axes: tuple[float, float, float],
+) -> tuple[Array, Array, Array]:
+    """The hand's turning on the fine time grid, sampled at the log's rate: the rotations
+    world → body, the body rates and the envelope (0 at the ``rests`` evenly spaced rests)."""
+    stretches: list[tuple[float, float]] = []
+    if rests > 0:
+        centres = (np.arange(rests) + 0.5) * seconds / rests
+        stretches = [(c - rest_seconds / 2, c + rest_seconds / 2) for c in centres]
+    env_fine = _envelope(fine, stretches, ramp=0.5)
+    w_fine, _ = _smooth(rng, fine, 6, (0.1, 1.0), turn_rate)
+    w_fine = w_fine * np.asarray(axes, dtype=float) * env_fine[:, None]
+    R0 = random_rotations(1, rng)[0]
+    # dR/dt = −[ω]× R, the rate held at the middle of each fine step
+    mid = 0.5 * (w_fine[1:] + w_fine[:-1]) * np.diff(fine)[:, None]
+    rel = ordered_products(exp_so3(-mid))
+    R = np.concatenate([R0[None], rel @ R0])[::_FINE]
+    omega = w_fine[::_FINE]
+    env = env_fine[::_FINE]
+    return R, omega, env
+
+
+def _rest_rows(env: Array) -> tuple[tuple[int, int], ...]:
+    """The rows [start, stop) where the envelope is zero: the rests."""
+    still = env < 1e-9
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    return tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
 
 
 def _draw_sensors(
