@@ -215,15 +215,7 @@ def simulate(
         rotations = _handheld_rotations(n, rng)
     else:
         raise ValueError("pose_distribution must be 'uniform' or 'handheld'")
-    g_z = rng.uniform(*params["gravity_z"])
-    if params["dip_deg"] is None:
-        h_x, h_z = rng.uniform(*params["field_x"]), rng.uniform(*params["field_z"])
-    else:
-        dip = np.radians(rng.uniform(*params["dip_deg"]))
-        strength = rng.uniform(*params["field_x"])
-        h_x, h_z = strength * np.cos(dip), strength * np.sin(dip)
-    gravity = np.array([0.0, 0.0, g_z])
-    magnetic = np.array([h_x, 0.0, h_z])
+    gravity, magnetic = _fields(rng, params)
 
     def sensor() -> tuple[Array, Array, Array]:
         bias = rng.uniform(-params["bias"], params["bias"], 3)
@@ -245,12 +237,7 @@ def simulate(
 
     accel = draw(Ka, ba, Sa, gravity)
     mag = draw(Km, bm, Sm, magnetic)
-    q_a, q_m = (float(q) for q in np.broadcast_to(params["pose_noise"], (2,)))
-    for samples, q in ((accel, q_a), (mag, q_m)):
-        if q > 0:
-            offsets = rng.normal(0.0, q, (n, 3))
-            for pose, offset in zip(samples, offsets, strict=True):
-                pose += offset
+    q_a, q_m = _add_pose_noise(rng, accel, mag, params)
 
     R, Ka_c, Km_c, g_c, h_c = canonical_gauge(rotations, Ka, Km, gravity, magnetic)
     truth = Calibration(
@@ -277,6 +264,36 @@ def simulate(
         "preset": preset,
     }
     return Session(accel=accel, mag=mag, truth=truth, drawn=drawn)
+
+
+def _fields(rng: np.random.Generator, params: Preset) -> tuple[Array, Array]:
+    """Gravity and the magnetic field in the world frame (Table 1: ``gravity_z``, ``field_x``,
+    ``field_z``; or a field of strength ``field_x`` at a dip drawn from ``dip_deg``)."""
+    g_z = rng.uniform(*params["gravity_z"])
+    if params["dip_deg"] is None:
+        h_x, h_z = rng.uniform(*params["field_x"]), rng.uniform(*params["field_z"])
+    else:
+        dip = np.radians(rng.uniform(*params["dip_deg"]))
+        strength = rng.uniform(*params["field_x"])
+        h_x, h_z = strength * np.cos(dip), strength * np.sin(dip)
+    gravity = np.array([0.0, 0.0, g_z])
+    magnetic = np.array([h_x, 0.0, h_z])
+    return gravity, magnetic
+
+
+def _add_pose_noise(
+    rng: np.random.Generator, accel: list[Array], mag: list[Array], params: Preset
+) -> tuple[float, float]:
+    """Add each pose's shared offset (``pose_noise``: the standard deviations per axis of the
+    accelerometer's and the magnetometer's) to its samples, in place; the two deviations."""
+    n = len(accel)
+    q_a, q_m = (float(q) for q in np.broadcast_to(params["pose_noise"], (2,)))
+    for samples, q in ((accel, q_a), (mag, q_m)):
+        if q > 0:
+            offsets = rng.normal(0.0, q, (n, 3))
+            for pose, offset in zip(samples, offsets, strict=True):
+                pose += offset
+    return q_a, q_m
 
 
 def _whole(value: object) -> bool:
