@@ -143,18 +143,39 @@ def test_no_two_modules_share_a_file_name():
     assert prefixed == []
 
 
+#: Longest module and longest function (docstring and signature included), in lines.
+MODULE_LINES, FUNCTION_LINES = 800, 100
+
+#: Functions over :data:`FUNCTION_LINES` while other branches shorten them (the lead removes
+#: each entry at merge): ``path:function`` -> whose it is.
+OVER_FOR_NOW = {
+    # branch of the continuous-motion helper (issue 33's rewrite of the estimator)
+    "methods/continuous/__init__.py:fit_continuous": "continuous",
+    "methods/continuous/__init__.py:_fit": "continuous",
+    # branch of the hand-held simulation's helper
+    "simulation/handheld.py:simulate_handheld": "handheld",
+    # branch of the pose path's trust helper (trust/fitting.py)
+    "trust/fitting.py:fit_trusted": "trust",
+    # c32: a public entry point whose 20 typed keywords and their numpydoc are 103 of its
+    # 131 lines (body 28); shortening it means trimming the API's documentation: the lead's call
+    "api.py:calibrate": "c32",
+}
+
+
 def test_modules_and_functions_fit_in_a_head():
-    """No module over 1,000 lines, no function over 150 (../shared/STYLE.md §10)."""
+    """No module over 800 lines, no function over 100 (../shared/STYLE.md §10; issue 32:
+    by decomposition, one job per module)."""
     too_long = []
     for p in _modules():
         text = p.read_text(encoding="utf-8")
-        if text.count("\n") > 1000:
+        if text.count("\n") > MODULE_LINES:
             too_long.append(f"{p.relative_to(SRC)}: {text.count(chr(10))} lines")
         for n in ast.walk(ast.parse(text)):
             if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef):
                 length = (n.end_lineno or n.lineno) - n.lineno + 1
-                if length > 150:
-                    too_long.append(f"{p.relative_to(SRC)}:{n.name}: {length} lines")
+                where = f"{p.relative_to(SRC)}:{n.name}"
+                if length > FUNCTION_LINES and where not in OVER_FOR_NOW:
+                    too_long.append(f"{where}: {length} lines")
     assert too_long == []
 
 
