@@ -12,10 +12,11 @@ import pytest
 from _cli import lines_of, pose_csv, run, user_error
 
 import fieldcal
-from fieldcal.cli import EXIT_FAIL
+from fieldcal.cli import EXIT_FAIL, cli
 from fieldcal.geometry.rotations import exp_so3
 from fieldcal.output.exports import FORMATS
 from fieldcal.output.terminal import MAX_POSE_ROWS
+from fieldcal.settings import OPTIONS, READ_OPTIONS
 
 
 def test_calibrate_summary_and_json(files):
@@ -167,6 +168,33 @@ def test_apply(files, tmp_path):
     got = np.column_stack([data["mx_cal"], data["my_cal"], data["mz_cal"]])
     assert np.allclose(got, cal.correct_mag(raw), rtol=1e-7, atol=1e-8)
     assert np.allclose(np.linalg.norm(got, axis=1).mean(), 1.0, atol=0.02)
+
+
+def _flags(command: str) -> set[str]:
+    return {o for p in cli.commands[command].params for o in p.opts if o.startswith("--")}
+
+
+def test_apply_and_calibrate_take_the_same_reader_flags():
+    """The reader's flags come from the settings table for both commands: a new reader option
+    is one settings field, on both (issue 32)."""
+    reader = {f for name in READ_OPTIONS for f in OPTIONS[name].flag.split("/")}
+    assert {"--accel-cols", "--current-col", "--throttle-col", "--mag"} <= reader
+    assert reader <= _flags("apply") and reader <= _flags("calibrate")
+    assert _flags("apply") & _flags("calibrate") >= reader
+
+
+def test_apply_notes_the_reader_flags_it_does_not_need(files, tmp_path):
+    plain, noted = tmp_path / "a.csv", tmp_path / "b.csv"
+    run("apply", files["cal"], files["session"], "-o", plain)
+    result = run(
+        "apply", files["cal"], files["session"], "-o", noted, "--time-col", "t", "--mag-cols",
+        "mx,my,mz",
+    )  # fmt: skip
+    assert "note: not used by apply: --time-col" in result.stderr
+    assert plain.read_bytes() == noted.read_bytes()
+    quiet = run("apply", files["cal"], files["session"], "-o", noted, "--time-col", "t", "-q",
+                "--force")  # fmt: skip
+    assert quiet.stderr == ""
 
 
 @pytest.mark.parametrize(

@@ -3,6 +3,8 @@ chosen by the output's suffix (an NPZ's sensor array keeps its shape)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from _logs import _Double
@@ -65,3 +67,16 @@ def test_an_npz_sensor_array_gets_a_calibrated_array_of_its_shape(tmp_path):
     with np.load(tmp_path / "out.npz") as out:
         np.testing.assert_array_equal(out["accel_cal"], 2 * accel)
         np.testing.assert_array_equal(out["accel"], accel)
+
+
+def test_a_flight_logs_sensor_instances_reach_its_reader(tmp_path):
+    """--mag/--imu as calibrate reads them: an instance the log lacks is refused by name."""
+    pytest.importorskip("pyulog", reason="the [ulog] extra (pyulog) is not installed")
+    log = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "px4-ulog"
+    log = log / "sample_log_small.ulg"
+    if not log.is_file():
+        pytest.skip(f"{log} is absent (../shared/data beside the repository)")
+    with pytest.raises(InputError, match="no mag instance 5"):
+        apply_to_file(_Double(), log, tmp_path / "out.csv", mag_instance=5)
+    apply_to_file(_Double(), log, tmp_path / "out.csv", mag_instance=0, accel_cols="ax,ay,az")
+    assert "ax_cal" in (tmp_path / "out.csv").read_text().splitlines()[0]

@@ -3,9 +3,11 @@ and a calibration file to a calibrated log, a firmware export or the pictures.""
 
 from __future__ import annotations
 
+import inspect
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -13,6 +15,7 @@ from .. import _files
 from ..errors import InputError
 from ..logs.sniff import is_calibration_json
 from ..output import exports
+from ..settings import OPTIONS
 from . import library
 from .group import (
     check_matplotlib,
@@ -27,11 +30,14 @@ from .group import (
 )
 from .options import (
     POSES_OPTION,
+    Given,
     check_reference,
     detect_options,
     fit_options,
+    keywords,
     load,
     log_options,
+    reader_options,
     run_calibration,
     settings,
 )
@@ -117,19 +123,9 @@ def check_order(cal_json: str, log: str, command: str) -> None:
     required=True,
     help="The log with calibrated columns, in the format of its suffix (.csv, .parquet, .npz).",
 )
-@click.option("--accel-cols", help="Accelerometer columns x,y,z (default: recognised).")
-@click.option("--mag-cols", help="Magnetometer columns x,y,z (default: recognised).")
-@click.option(
-    "--gyro-cols", help="Gyroscope columns x,y,z (default: recognised); written in rad/s."
-)
-@click.option(
-    "--decimal", type=click.Choice([".", ","]), help="Decimal mark of a text log (default: seen)."
-)
-@click.option("--imu-topic", help="ROS bag: the sensor_msgs/Imu topic (default: the one).")
-@click.option("--mag-topic", help="ROS bag: the sensor_msgs/MagneticField topic.")
-@click.option(
-    "--temp-col",
-    help="Temperature column (deg C) for a calibration with temperature terms (default: the "
+@reader_options(
+    gyro_cols="Gyroscope columns x,y,z (default: recognised); written in rad/s.",
+    temp_col="Temperature column (deg C) for a calibration with temperature terms (default: the "
     "one the calibration was fitted with, else recognised).",
 )
 @click.option(
@@ -137,26 +133,16 @@ def check_order(cal_json: str, log: str, command: str) -> None:
     type=float,
     help="One temperature (deg C) for every row, for a log without a temperature column.",
 )
-@click.option("--current-col", help="Battery-current column (A) for an interference term.")
-@click.option("--throttle-col", help="Throttle column (0-1) for an interference term.")
 @click.option("--quiet", "-q", is_flag=True, help="Print only errors.")
 @force_option
 def apply(
     cal_json: str,
     log: str,
     output: str,
-    accel_cols: str | None,
-    mag_cols: str | None,
-    gyro_cols: str | None,
-    decimal: str | None,
-    imu_topic: str | None,
-    mag_topic: str | None,
-    temp_col: str | None,
     temperature: float | None,
-    current_col: str | None,
-    throttle_col: str | None,
     quiet: bool,
     force: bool,
+    **opts: Any,
 ) -> None:
     """Append calibrated columns (<col>_cal) to LOG, keeping everything else as it was.
 
@@ -166,34 +152,36 @@ def apply(
     ax.., gx.., mx..) with the calibrated columns. A calibration with temperature terms uses
     each row's temperature (the column it was fitted with, --temp-col, or --temperature); one
     with an interference term each row's battery current or throttle (recognised, or
-    --current-col/--throttle-col).
+    --current-col/--throttle-col). It takes calibrate's reader options; those it does not need
+    (a time or pose column) are noted.
     """
     claim([output], {"calibration": cal_json, "log": log}, force)
     check_order(cal_json, log, "apply")
+    reading = applied_reading(opts, quiet)
     library.check_pyarrow(log, output)
     cal = read_cal(cal_json)
     with progress_line(quiet) as progress:
         if progress is not None:
             progress(f"applying the calibration to {log}")
         used = library.apply_to_file(
-            cal,
-            log,
-            output,
-            accel_cols=accel_cols,
-            mag_cols=mag_cols,
-            gyro_cols=gyro_cols,
-            decimal=decimal,
-            imu_topic=imu_topic,
-            mag_topic=mag_topic,
-            on_progress=progress,
-            temp_col=temp_col,
-            temperature=temperature,
-            current_col=current_col,
-            throttle_col=throttle_col,
+            cal, log, output, on_progress=progress, temperature=temperature, **reading
         )
     if not quiet:
         cols = "; ".join(f"{s}: {','.join(c)}" for s, c in used.items())
         open_console().print(f"calibrated {cols} -> {output}")
+
+
+def applied_reading(opts: Given, quiet: bool) -> dict[str, Any]:
+    """The reader's options ``apply`` was given that it uses (those of
+    :func:`fieldcal.logs.apply.apply_to_file`), by library keyword; those it does not need (a
+    time or pose column: every row and column is kept as it is) are noted on stderr, never
+    dropped silently."""
+    reading = keywords(opts, ["read"])
+    takes = inspect.signature(library.apply_to_file).parameters
+    unused = [OPTIONS[name].flag for name in reading if name not in takes]
+    if unused and not quiet:
+        click.echo(f"note: not used by apply: {', '.join(unused)}", err=True)
+    return {name: value for name, value in reading.items() if name in takes}
 
 
 # ----------------------------------------------------------------------------- export

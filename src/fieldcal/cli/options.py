@@ -57,6 +57,7 @@ __all__ = [
     "log_options",
     "parse_noise_option",
     "parse_pose_noise_option",
+    "reader_options",
     "run_calibration",
     "sensor_columns",
     "settings",
@@ -173,8 +174,16 @@ def option_for(option: Option, **override: Any) -> Callable[[Command], Command]:
     return both
 
 
-def _options(names: Iterable[str]) -> Callable[[Command], Command]:
-    decorators = [option_for(OPTIONS[name]) for name in names]
+def _options(
+    names: Iterable[str], helps: Mapping[str, str] | None = None
+) -> Callable[[Command], Command]:
+    """The click options of ``names`` (settings options), ``helps`` another help text for some
+    (by library keyword)."""
+    helps = helps or {}
+    decorators = [
+        option_for(OPTIONS[name], **({"help": helps[name]} if name in helps else {}))
+        for name in names
+    ]
 
     def add(f: Command) -> Command:
         for decorator in reversed(decorators):
@@ -198,8 +207,17 @@ sensor_columns = _options(["accel_cols", "mag_cols", "gyro_cols"])
 #: ``--mag N``, ``--imu N``: a flight log's sensor instances (``noise``; ``calibrate`` and
 #: ``batch`` take them with the reader's options).
 flight_instances = _options(["mag_instance", "imu_instance"])
+
+
+def reader_options(**helps: str) -> Callable[[Command], Command]:
+    """The reader's options (:data:`fieldcal.settings.READ_OPTIONS`): the same flags on every
+    command that reads a log, ``helps`` another help text for some where the command uses them
+    otherwise (``apply``'s ``--gyro-cols``), by library keyword."""
+    return _options(READ_OPTIONS, helps)
+
+
 #: The reader's options: columns, missing values, the text's decimal mark, time resets, topics.
-log_options = _options(READ_OPTIONS)
+log_options = reader_options()
 #: Still detection's options (``--poses`` is :data:`POSES_OPTION`).
 detect_options = _options(_stage("detect", leave=("poses",)))
 #: The calibration's and the check's options (the accuracy targets among them), shared by

@@ -37,7 +37,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -136,6 +136,8 @@ def apply_to_file(
     current_col: str | None = None,
     throttle_col: str | None = None,
     gyro_cols: str | Sequence[str] | None = None,
+    mag_instance: int | None = None,
+    imu_instance: int | None = None,
 ) -> dict[str, list[str]]:
     """Append calibrated columns (``<col>_cal``) to a log and write it to ``dst``: the
     accelerometer's, the magnetometer's and the gyroscope's (rad/s) that the calibration
@@ -173,6 +175,9 @@ def apply_to_file(
         For a calibration with an interference term (:mod:`fieldcal.interference`): the
         battery-current or throttle column (default: recognised by name); the log is then
         read whole (a CSV is written again, not streamed line by line).
+    mag_instance, imu_instance : int, optional
+        A flight log's (``.ulg``, ``.bin``) magnetometer and IMU instances (default: the
+        primary ones), as the calibration read them (:func:`~fieldcal.logs.readers.read_table`).
 
     Returns
     -------
@@ -195,17 +200,18 @@ def apply_to_file(
     columns = {"accel": accel_cols, "mag": mag_cols, "gyro": gyro_cols}
     thermal = Thermal(cal, sensors, temp_col, temperature)
     drive = Drive(cal, current_col, throttle_col)
+    reading = _Reading(decimal, mag_instance, imu_instance)
     if is_bag(src):  # (a rosbag2 bag is a folder)
         bag = read_bag(src, imu_topic=imu_topic, mag_topic=mag_topic, on_progress=on_progress)
         return _apply_table(cal, src, dst, sensors, columns, table=bag, thermal=thermal)
     if drive.model is not None or src.suffix.lower() in FLIGHT_READERS:
         # the interference term needs each row's current: the table path reads the whole log
-        return _apply_table(cal, src, dst, sensors, columns, decimal, thermal=thermal, drive=drive)
+        return _apply_table(cal, src, dst, sensors, columns, reading, thermal=thermal, drive=drive)
     _check_source(src, decimal)
     if output_format(src) == output_format(dst) == "text":
         rows = chunk_rows or CHUNK_ROWS
         return apply_text(cal, src, dst, sensors, columns, rows, on_progress, decimal, thermal)
-    return _apply_table(cal, src, dst, sensors, columns, decimal, thermal=thermal)
+    return _apply_table(cal, src, dst, sensors, columns, reading, thermal=thermal)
 
 
 def _check_source(src: Path, decimal: str | None) -> None:
@@ -246,13 +252,22 @@ def _parquet_columns(src: Path, table: Any) -> Table:
     return Table(str(src), list(columns), columns)
 
 
+class _Reading(NamedTuple):
+    """How a log read whole is read: a text log's decimal mark, a flight log's magnetometer
+    and IMU instances (:func:`~fieldcal.logs.readers.read_table`'s keywords)."""
+
+    decimal: str | None = None
+    mag_instance: int | None = None
+    imu_instance: int | None = None
+
+
 def _apply_table(
     cal: Calibration,
     src: Path,
     dst: Path,
     sensors: list[str],
     columns: dict[str, str | Sequence[str] | None],
-    decimal: str | None = None,
+    reading: _Reading | None = None,
     *,
     table: Table | None = None,
     thermal: Thermal,
@@ -280,7 +295,7 @@ def _apply_table(
             ) from None
         table = _parquet_columns(src, arrow)
     else:
-        table = read_table(src, decimal=decimal)
+        table = read_table(src, **(reading or _Reading())._asdict())
     used = columns_for_apply(table.path, table.names, sensors, columns)
     temp_name = thermal.find(table.path, table.names)
     t = thermal.values(None if temp_name is None else table.numeric(temp_name), temp_name)
