@@ -7,6 +7,7 @@ C parser and one formatting pass, else line by line (which names the problem); s
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import io
@@ -25,14 +26,6 @@ from numpy.typing import NDArray
 from .._files import replacing
 from ..errors import InputError
 from .arrow_parser import float_column, pyarrow_module
-from .readers import to_float
-from .text import parse_numbers
-from .text_layout import HEAD_LINES, layout
-from .text_lines import _split
-
-if TYPE_CHECKING:
-    from ..calibration import Calibration
-
 from .calibrated_columns import (
     Thermal,
     as_text,
@@ -41,6 +34,13 @@ from .calibrated_columns import (
     corrected,
     reported_columns,
 )
+from .raw_table import to_float
+from .text import parse_numbers
+from .text_layout import HEAD_LINES, layout
+from .text_lines import _split
+
+if TYPE_CHECKING:
+    from ..calibration import Calibration
 
 __all__ = ["ARROW_MIN_ROWS", "PROGRESS_SECONDS", "apply_text"]
 
@@ -87,6 +87,17 @@ class _Text:
     temp_name: str | None = None
 
 
+@contextlib.contextmanager
+def _read_as_text(src: Path) -> Iterator[None]:
+    """A file that is not text, or not CSV, refused in one line naming it."""
+    try:
+        yield
+    except UnicodeDecodeError:
+        raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
+    except csv.Error as exc:
+        raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
+
+
 def apply_text(
     cal: Calibration,
     src: Path,
@@ -101,29 +112,9 @@ def apply_text(
     """The calibrated columns appended to every data line of a text log ``src``, written to
     ``dst`` (atomically), streamed ``chunk_rows`` lines at a time; the columns used per sensor.
     A file that is not text or not CSV is refused in one line."""
-    try:
-        return _apply_text(
-            cal, src, dst, sensors, columns, chunk_rows, on_progress, decimal, thermal
-        )
-    except UnicodeDecodeError:
-        raise InputError(f"{src}: not a text file; give a CSV with a header line") from None
-    except csv.Error as exc:
-        raise InputError(f"{src}: cannot read it as CSV ({exc}); fix the file") from None
-
-
-def _apply_text(
-    cal: Calibration,
-    src: Path,
-    dst: Path,
-    sensors: list[str],
-    columns: dict[str, str | Sequence[str] | None],
-    chunk_rows: int,
-    on_progress: Callable[[str], None] | None,
-    decimal: str | None,
-    thermal: Thermal,
-) -> dict[str, list[str]]:
     size = max(src.stat().st_size, 1)
     with (
+        _read_as_text(src),
         src.open(newline="", encoding="utf-8") as handle,
         replacing(dst) as temp,
         temp.open("w", newline="", encoding="utf-8") as out,
