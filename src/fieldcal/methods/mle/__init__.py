@@ -53,6 +53,11 @@ FEW_POSES = 12
 PENCIL_POSES = 12
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
+#: Above this many poses (samples and windows modes: thousands of one-sample poses) the further
+#: starts run on an evenly spaced subset of this many: whether a start leads to another
+#: minimum is a matter of the poses' spread, which the subset keeps; a start that beats the
+#: best there is then run on every pose from the subset's optimum.
+SUBSET_POSES = 400
 
 
 def _temperature_model(
@@ -156,7 +161,7 @@ def fit(
     _check_count(stats)
     check_spread(stats)  # refuse rotations about one axis before any fit
     problem = build_problem(stats, body_frame)
-    search = _Search(problem, int(max_iter), float(tol))
+    search = _Search(problem, int(max_iter), float(tol), stats)
     best = search.run(stats.n_poses, initial)
     state = _canonical(problem, best.state)
     sensor_cals = {
@@ -216,8 +221,10 @@ class _Search:
     """The starts tried (closed-form, then more when the poses are few or the certificate
     doubtful) and the first to reach the lowest J."""
 
-    def __init__(self, problem: Problem, max_iter: int, tol: float) -> None:
-        self.problem, self.max_iter, self.tol = problem, max_iter, tol
+    def __init__(
+        self, problem: Problem, max_iter: int, tol: float, stats: PoseStats | None = None
+    ) -> None:
+        self.problem, self.max_iter, self.tol, self.stats = problem, max_iter, tol, stats
         self.best: Result | None = None
         self.tried: list[str] = []
         self.iterations = 0
@@ -234,6 +241,30 @@ class _Search:
             self.tried.append(name)
             if self.best is None or res.cost < self.best.cost - 1e-9 * (1 + res.cost):
                 self.best = res
+
+    def _screened(
+        self, candidates: list[tuple[State | None, str]], best: Result
+    ) -> list[tuple[State | None, str]]:
+        """The ``candidates`` run on :data:`SUBSET_POSES` evenly spaced poses beside the best
+        result so far; those that reach a lower J there come back, with the subset's globals
+        (their rotations from the start), to run on every pose. The others count as tried."""
+        assert self.stats is not None
+        index = np.unique(np.linspace(0, self.problem.n - 1, SUBSET_POSES).round().astype(int))
+        sub = build_problem(self.stats.subset(index), self.problem.frame)
+        todo = [(state, name) for state, name in candidates if state is not None]
+        base = levenberg_marquardt(
+            sub, _restricted(best.state, index), max_iter=self.max_iter, tol=self.tol
+        )
+        states = [_restricted(state, index) for state, _ in todo]
+        results = _solve_starts(sub, states, self.max_iter, self.tol, base.cost)
+        back: list[tuple[State | None, str]] = []
+        for (state, name), res in zip(todo, results, strict=True):
+            self.iterations += res.iterations
+            if res.cost < base.cost - 1e-9 * (1.0 + base.cost):
+                back.append((_with_globals(state, res.state), name))
+            else:
+                self.tried.append(name)
+        return back
 
     def label(self, model: tuple[str, str]) -> str:
         """A start's name: its sensors' models (one when they agree)."""
@@ -265,10 +296,27 @@ class _Search:
             ]
             if n < PENCIL_POSES:
                 more += [(state, f"pencil{k}") for k, state in enumerate(few_pose_starts(problem))]
-            self.consider(more)
+            if n > SUBSET_POSES and self.stats is not None and best is not None:
+                self.consider(self._screened(more, best))
+            else:
+                self.consider(more)
         if self.best is None:
             raise ValueError(
                 "no closed-form start: the pose means do not outline an ellipsoid; "
                 "add poses with each axis pointing up and down"
             )
         return self.best
+
+
+def _restricted(state: State, index: NDArray[np.intp]) -> State:
+    """``state`` on the poses ``index`` (their rotations)."""
+    out = state.copy()
+    out.rotations = out.rotations[index]
+    return out
+
+
+def _with_globals(state: State, source: State) -> State:
+    """``state``'s rotations with ``source``'s gains, biases, dip and temperature terms."""
+    out = source.copy()
+    out.rotations = state.rotations.copy()
+    return out
