@@ -48,6 +48,7 @@ from .pose_noise import (
     initial_variances,
     noise_reported,
     widening,
+    with_variances,
 )
 from .targets import Targets
 from .verdict import PoseFindings, ReferenceCheck, judge
@@ -172,6 +173,23 @@ def _worst(p_min: Array, flagged: NDArray[np.bool_], spare: int) -> NDArray[np.i
     return order[: max(1, min(count, spare))]
 
 
+#: From this many poses on, the pose-level variances to estimate are first estimated on an
+#: evenly spaced subset of :data:`SUBSET_POSES`, the whole problem's first fit starting from
+#: them: its fixed point (:func:`.pose_noise.estimate`) is then one or two refits away instead of
+#: a first fit with a guess a thousand times off and refits of tens of iterations each.
+SUBSET_NOISE_POSES = 2000
+SUBSET_POSES = 400
+
+
+def _subset_variances(runner: _Runner, stats: PoseStats, free: tuple[str, ...]) -> PoseStats:
+    """``stats`` with the variances of ``free`` estimated on :data:`SUBSET_POSES` of its poses."""
+    index = np.unique(np.linspace(0, stats.n_poses - 1, SUBSET_POSES).round().astype(np.int64))
+    sub = stats.subset(index)
+    cal = runner.method_fit(sub, index, None)
+    noise = _noise_round(runner, cal, sub, index, free)[4]
+    return with_variances(stats, {s: noise.variance[s] for s in free})
+
+
 def fit_trusted(
     method: Method,
     stats: PoseStats,
@@ -221,6 +239,8 @@ def fit_trusted(
     }
     free = tuple(s for s in stats.sensors if fixed[s] is None)
     start = initial_variances(stats, fixed)
+    if free and n_total >= SUBSET_NOISE_POSES:
+        start = _subset_variances(runner, start, free)
     cal = runner.method_fit(start, keep, None)
     first_options = dict(cal.options)  # the cold fit's account (starts tried), for provenance
     cal, ml, current, ev, noise = _noise_round(runner, cal, start, keep, free)
