@@ -116,6 +116,10 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
             sep = ","
         out.append("\n" + " " * (indent * level) + "}")
     elif isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value):
+        fast = _flat_records(value, level, indent) or _matrices(value, level, indent)
+        if fast is not None:
+            out.append(fast)
+            return
         if all(isinstance(v, list) for v in value):
             text = _LEAF(value)
             if '"' not in text and "[[[" not in text:  # rows of numbers: one row a line
@@ -130,6 +134,56 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
         out.append("\n" + " " * (indent * level) + "]")
     else:
         out.append(_LEAF(value))
+
+
+def _flat_records(value: list[object], level: int, indent: int) -> str | None:
+    """:func:`_lay_out`'s text of a list of flat objects (a pose table: thousands in samples
+    mode) from one call of the C encoder, or None when it is not one: every item a non-empty
+    dict, every entry a number, null, boolean or list of them, no string (so the only quotes
+    are the keys', and ``{"``, ``, "`` and ``}, {`` occur only between entries and items)."""
+    keys = 0
+    for item in value:
+        if not isinstance(item, dict) or not item:
+            return None
+        for entry in item.values():
+            if isinstance(entry, (str, dict)) or (
+                isinstance(entry, list) and any(isinstance(v, (str, list, dict)) for v in entry)
+            ):
+                return None
+        keys += len(item)
+    text = _LEAF(value)
+    if text.count('"') != 2 * keys:  # a key with a quote or escape in it: the general path
+        return None
+    outer, item_pad, entry_pad = (" " * (indent * k) for k in (level, level + 1, level + 2))
+    body = (
+        text[1:-1]
+        .replace("}, {", f"\n{item_pad}}},\n{item_pad}{{")
+        .replace('{"', f'{{\n{entry_pad}"')
+        .replace(', "', f',\n{entry_pad}"')
+    )
+    return f"[\n{item_pad}{body[:-1]}\n{item_pad}}}\n{outer}]"
+
+
+def _matrices(value: list[object], level: int, indent: int) -> str | None:
+    """:func:`_lay_out`'s text of a list of matrices of numbers (every pose's rotation) from
+    one call of the C encoder, or None when it is not one (each item a non-empty list of
+    non-empty lists of numbers, booleans or nulls)."""
+    for item in value:
+        if not isinstance(item, list) or not item:
+            return None
+        for row in item:
+            if not isinstance(row, list) or not row:
+                return None
+            if any(isinstance(x, (str, list, dict)) for x in row):
+                return None
+    text = _LEAF(value)
+    outer, item_pad, row_pad = (" " * (indent * k) for k in (level, level + 1, level + 2))
+    body = (
+        text[3:-3]
+        .replace("]], [[", f"]\n{item_pad}],\n{item_pad}[\n{row_pad}[")
+        .replace("], [", f"],\n{row_pad}[")
+    )
+    return f"[\n{item_pad}[\n{row_pad}[{body}]\n{item_pad}]\n{outer}]"
 
 
 # ----------------------------------------------------------------------------- reading
