@@ -67,10 +67,10 @@ def test_tables_and_matrices_laid_out_in_one_call_as_entry_by_entry(
     import fieldcal.serialize as serialize
 
     fast = dumps({"key": doc}, indent)
-    saved = serialize._flat_records, serialize._matrices
-    serialize._flat_records = serialize._matrices = lambda *args: None
+    saved = serialize._flat_record, serialize._matrices
+    serialize._flat_record = serialize._matrices = lambda *args: None
     try:
         assert dumps({"key": doc}, indent) == fast
     finally:
-        serialize._flat_records, serialize._matrices = saved
+        serialize._flat_record, serialize._matrices = saved
     assert json.loads(fast) == {"key": doc}

@@ -109,6 +109,10 @@ def dumps(value: object, indent: int | None = 2) -> str:
 def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
     inner = "\n" + " " * (indent * (level + 1))
     if isinstance(value, dict) and value:
+        flat = _flat_record(value, level, indent)
+        if flat is not None:
+            out.append(flat)
+            return
         sep = "{"
         for key, item in value.items():
             out.append(f"{sep}{inner}{_LEAF(str(key))}: ")
@@ -116,7 +120,7 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
             sep = ","
         out.append("\n" + " " * (indent * level) + "}")
     elif isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value):
-        fast = _flat_records(value, level, indent) or _matrices(value, level, indent)
+        fast = _matrices(value, level, indent)
         if fast is not None:
             out.append(fast)
             return
@@ -136,32 +140,23 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
         out.append(_LEAF(value))
 
 
-def _flat_records(value: list[object], level: int, indent: int) -> str | None:
-    """:func:`_lay_out`'s text of a list of flat objects (a pose table: thousands in samples
-    mode) from one call of the C encoder, or None when it is not one: every item a non-empty
-    dict, every entry a number, null, boolean or list of them, no string (so the only quotes
-    are the keys', and ``{"``, ``, "`` and ``}, {`` occur only between entries and items)."""
-    keys = 0
-    for item in value:
-        if not isinstance(item, dict) or not item:
+def _flat_record(value: dict[object, object], level: int, indent: int) -> str | None:
+    """:func:`_lay_out`'s text of a flat object (a row of the pose table: thousands in samples
+    mode) from one call of the C encoder, or None when it is not one: every entry a number,
+    null, boolean or list of them, no string (so the only quotes are the keys', and ``, "``
+    occurs only between entries)."""
+    for entry in value.values():
+        if isinstance(entry, (str, dict)) or (
+            isinstance(entry, list) and any(isinstance(v, (str, list, dict)) for v in entry)
+        ):
             return None
-        for entry in item.values():
-            if isinstance(entry, (str, dict)) or (
-                isinstance(entry, list) and any(isinstance(v, (str, list, dict)) for v in entry)
-            ):
-                return None
-        keys += len(item)
     text = _LEAF(value)
-    if text.count('"') != 2 * keys:  # a key with a quote or escape in it: the general path
+    if text.count('"') != 2 * len(value):  # a key with a quote or escape in it: the general path
         return None
-    outer, item_pad, entry_pad = (" " * (indent * k) for k in (level, level + 1, level + 2))
-    body = (
-        text[1:-1]
-        .replace("}, {", f"\n{item_pad}}},\n{item_pad}{{")
-        .replace('{"', f'{{\n{entry_pad}"')
-        .replace(', "', f',\n{entry_pad}"')
+    pad = "\n" + " " * (indent * (level + 1))
+    return (
+        "{" + pad + text[1:-1].replace(', "', "," + pad + '"') + "\n" + " " * (indent * level) + "}"
     )
-    return f"[\n{item_pad}{body[:-1]}\n{item_pad}}}\n{outer}]"
 
 
 def _matrices(value: list[object], level: int, indent: int) -> str | None:
