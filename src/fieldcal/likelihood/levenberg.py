@@ -278,7 +278,7 @@ def levenberg_marquardt(
     result is the same (to rounding; bit for bit with the BLAS we test on).
     """
     service = SERVICE.get()
-    if service is not None:
+    if service is not None and not many_poses(problem):  # thousands: rules of their own
         return service(problem, state, max_iter, tol, lam, known_minimum)
     return solve_alone(problem, state, max_iter, tol, lam, known_minimum)
 
@@ -360,6 +360,13 @@ SETTLED_POSES = 2000
 SETTLED = 1e-4
 
 
+def many_poses(problem: Problem) -> bool:
+    """Whether ``problem`` has :data:`SETTLED_POSES` or more poses: its own stopping rule and
+    extrapolated steps (:func:`solve_alone`), so it is solved alone, never stepped with others
+    (:mod:`.lockstep` keeps the rules of fewer poses)."""
+    return problem.n >= SETTLED_POSES
+
+
 class Nielsen(Schedule):
     """The pose methods' rules (Nielsen's damping): λ scaled by ``max(1/3, 1 − (2ρ − 1)³)``
     after a step taken, by a doubling factor after a refusal (beyond 1e16: given up). Stops
@@ -413,7 +420,7 @@ def solve_alone(
 ) -> Result:
     """:func:`levenberg_marquardt` in this thread, whatever service is set: the shared loop
     (:func:`.marquardt.minimise`) with the rules of :class:`Nielsen`."""
-    many = problem.n >= SETTLED_POSES
+    many = many_poses(problem)
     reduced = _Reduced(problem, extrapolate=many)
     start = _Point(state)
     cost = reduced.cost(start)

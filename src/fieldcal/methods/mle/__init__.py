@@ -23,7 +23,7 @@ from scipy.special import chdtrc
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
 from ...geometry.rotations import wahba_pair
-from ...likelihood.levenberg import Result, levenberg_marquardt
+from ...likelihood.levenberg import Result, levenberg_marquardt, many_poses
 from ...likelihood.lockstep import Request, lockstep
 from ...likelihood.pose_model import (
     Problem,
@@ -111,7 +111,7 @@ def _solve_starts(
     """LM from each start, each told ``known`` (the J of a minimum found before them): one at a
     time for one start, else stepped together (:func:`~fieldcal.likelihood.lockstep.
     lockstep`, the same result per start as alone). A singular system raises, as alone."""
-    if len(states) < 2:
+    if len(states) < 2 or many_poses(problem):  # thousands: the single solver's own rules
         return [
             levenberg_marquardt(problem, s, max_iter=max_iter, tol=tol, known_minimum=known)
             for s in states
@@ -298,7 +298,7 @@ class _Search:
     def run(self, n: int, initial: Calibration | None) -> Result:
         """The best result over the starts for ``n`` poses (``initial``: a warm start)."""
         problem = self.problem
-        if initial is None and n > COLD_SUBSET_POSES and self.stats is not None:
+        if initial is None and n >= COLD_SUBSET_POSES and self.stats is not None:
             return self._from_subset()
         if initial is not None:
             self.consider([(state_from_calibration(problem, initial), "initial")])
