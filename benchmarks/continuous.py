@@ -27,6 +27,7 @@ configuration of Huang, Hendeby & Skog (arXiv:2505.16662, Huang-Chuan/Mag-IMU-Jo
     python benchmarks/continuous.py --coverage-logs 40 --accuracy-logs 10 --no-docs
     python benchmarks/continuous.py --only split --no-docs   # the real sessions only
     python benchmarks/continuous.py --only hhs --hhs-sets 20 # their configuration only
+    python benchmarks/continuous.py --only hhs --hhs-sets 20 --hold-gyro-gain  # gain held
 """
 
 from __future__ import annotations
@@ -323,6 +324,15 @@ def _hhs_log(rng: np.random.Generator, rate: float = 80.0):
 HHS_PARAMETERS = {"D": 9, "mag_bias": 3, "acc_bias": 3, "gyro_bias": 3, "dip_deg": 1}
 
 
+def identity_gyro_prior() -> fieldcal.Calibration:
+    """A calibration whose gyroscope gain is their simulator's (the identity, rad/s): the
+    earlier calibration ``hold="gyro.gain"`` takes the gain from."""
+    from fieldcal.calibration import Calibration, SensorCalibration
+
+    gyro = SensorCalibration(gain=np.eye(3), bias=np.zeros(3), noise_cov=np.eye(3))
+    return Calibration(None, None, None, None, np.empty((0, 3, 3)), "prior", gyro=gyro)
+
+
 def hhs(n_sets: int, **fit_options: object) -> dict[str, dict[str, float]]:
     """RMSE of each of their parameters over ``n_sets`` datasets, by their definition
     (compute_stat.m: ``sqrt(mean over datasets of |error vector|²)``, the Frobenius norm for
@@ -390,6 +400,8 @@ def _hhs_options(pairs: list[str]) -> dict[str, object]:
     for pair in pairs:
         name, _, value = pair.partition("=")
         out[name.strip()] = json.loads(value)
+    if "gyro.gain" in str(out.get("hold", "")) and "prior" not in out:
+        out["prior"] = identity_gyro_prior()  # their gyroscope gain: the identity
     return out
 
 
@@ -413,7 +425,14 @@ def main() -> None:
         metavar="NAME=JSON",
         help="A keyword for fit_continuous in the HHS runs (JSON value), e.g. to hold a block.",
     )
+    parser.add_argument(
+        "--hold-gyro-gain",
+        action="store_true",
+        help="HHS runs: hold the gyroscope's gain at their simulator's (the identity).",
+    )
     args = parser.parse_args()
+    if args.hold_gyro_gain:
+        args.hhs_option.append('hold="gyro.gain"')
     if args.only == "split":
         with pin_blas_threads():
             print("\n".join(split_lines(split_halves())), flush=True)
@@ -428,7 +447,8 @@ def main() -> None:
         + "".join(
             f" --{k.replace('_', '-')} {v}"
             for k, v in vars(args).items()
-            if k not in ("no_docs", "only", "hhs_option") and v != parser.get_default(k)
+            if k not in ("no_docs", "only", "hhs_option", "hold_gyro_gain")
+            and v != parser.get_default(k)
         )
         + "".join(f" --hhs-option '{o}'" for o in args.hhs_option)
     )

@@ -42,3 +42,35 @@ def test_a_calibration_is_laid_out_a_matrix_row_a_line() -> None:
     assert lines[gain + 4] == "    ],"
     assert len(lines) < len(json.dumps(cal.to_dict(), indent=2).splitlines()) / 2
     assert cal.to_json(indent=None).count("\n") == 0
+
+
+_NUMBERS = (
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False, allow_infinity=False)
+)
+_RECORDS = st.lists(
+    st.dictionaries(
+        st.text(max_size=3), _NUMBERS | st.lists(_NUMBERS, max_size=3) | st.text(max_size=2)
+    ),
+    min_size=1,
+    max_size=4,
+)
+_MATRICES = st.lists(st.lists(st.lists(_NUMBERS, max_size=3), max_size=3), min_size=1, max_size=4)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_RECORDS | _MATRICES, st.sampled_from([0, 2, 4]))
+def test_tables_and_matrices_laid_out_in_one_call_as_entry_by_entry(
+    doc: object, indent: int
+) -> None:
+    """A pose table and the rotations (thousands of entries in samples mode) are laid out from
+    one call of the C encoder: the very text the entry-by-entry walk writes."""
+    import fieldcal.serialize as serialize
+
+    fast = dumps({"key": doc}, indent)
+    saved = serialize._flat_record, serialize._matrices
+    serialize._flat_record = serialize._matrices = lambda *args: None
+    try:
+        assert dumps({"key": doc}, indent) == fast
+    finally:
+        serialize._flat_record, serialize._matrices = saved
+    assert json.loads(fast) == {"key": doc}

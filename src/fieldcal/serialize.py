@@ -109,6 +109,10 @@ def dumps(value: object, indent: int | None = 2) -> str:
 def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
     inner = "\n" + " " * (indent * (level + 1))
     if isinstance(value, dict) and value:
+        flat = _flat_record(value, level, indent)
+        if flat is not None:
+            out.append(flat)
+            return
         sep = "{"
         for key, item in value.items():
             out.append(f"{sep}{inner}{_LEAF(str(key))}: ")
@@ -116,6 +120,10 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
             sep = ","
         out.append("\n" + " " * (indent * level) + "}")
     elif isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value):
+        fast = _matrices(value, level, indent)
+        if fast is not None:
+            out.append(fast)
+            return
         if all(isinstance(v, list) for v in value):
             text = _LEAF(value)
             if '"' not in text and "[[[" not in text:  # rows of numbers: one row a line
@@ -130,6 +138,47 @@ def _lay_out(value: object, level: int, indent: int, out: list[str]) -> None:
         out.append("\n" + " " * (indent * level) + "]")
     else:
         out.append(_LEAF(value))
+
+
+def _flat_record(value: dict[object, object], level: int, indent: int) -> str | None:
+    """:func:`_lay_out`'s text of a flat object (a row of the pose table: thousands in samples
+    mode) from one call of the C encoder, or None when it is not one: every entry a number,
+    null, boolean or list of them, no string (so the only quotes are the keys', and ``, "``
+    occurs only between entries)."""
+    for entry in value.values():
+        if isinstance(entry, (str, dict)) or (
+            isinstance(entry, list) and any(isinstance(v, (str, list, dict)) for v in entry)
+        ):
+            return None
+    text = _LEAF(value)
+    if text.count('"') != 2 * len(value):  # a key with a quote or escape in it: the general path
+        return None
+    pad = "\n" + " " * (indent * (level + 1))
+    return (
+        "{" + pad + text[1:-1].replace(', "', "," + pad + '"') + "\n" + " " * (indent * level) + "}"
+    )
+
+
+def _matrices(value: list[object], level: int, indent: int) -> str | None:
+    """:func:`_lay_out`'s text of a list of matrices of numbers (every pose's rotation) from
+    one call of the C encoder, or None when it is not one (each item a non-empty list of
+    non-empty lists of numbers, booleans or nulls)."""
+    for item in value:
+        if not isinstance(item, list) or not item:
+            return None
+        for row in item:
+            if not isinstance(row, list) or not row:
+                return None
+            if any(isinstance(x, (str, list, dict)) for x in row):
+                return None
+    text = _LEAF(value)
+    outer, item_pad, row_pad = (" " * (indent * k) for k in (level, level + 1, level + 2))
+    body = (
+        text[3:-3]
+        .replace("]], [[", f"]\n{item_pad}],\n{item_pad}[\n{row_pad}[")
+        .replace("], [", f"],\n{row_pad}[")
+    )
+    return f"[\n{item_pad}[\n{row_pad}[{body}]\n{item_pad}]\n{outer}]"
 
 
 # ----------------------------------------------------------------------------- reading

@@ -465,7 +465,8 @@ class FitSettings:
         metadata=meta(
             "--gyro-noise",
             "Continuous motion: the gyroscope's white noise per sample, rad/s (default: "
-            "estimated from the rates' second differences; give it when the rate jitters).",
+            "estimated from the rates' quietest stretches; give it when the rate jitters at every "
+            "sample).",
             unit="rad/s",
             valid=MAGNITUDE,
             paths=CONTINUOUS_ONLY,

@@ -278,7 +278,7 @@ def levenberg_marquardt(
     result is the same (to rounding; bit for bit with the BLAS we test on).
     """
     service = SERVICE.get()
-    if service is not None:
+    if service is not None and not many_poses(problem):  # thousands: rules of their own
         return service(problem, state, max_iter, tol, lam, known_minimum)
     return solve_alone(problem, state, max_iter, tol, lam, known_minimum)
 
@@ -290,14 +290,19 @@ class _Point:
     state: State
     VV: Array | None = None
     e: Array | None = None
+    value: float | None = None  # J at the state, once computed
 
 
 class _Reduced:
     """The pose problem for the shared loop (:func:`.marquardt.minimise`): the Gauss–Newton
-    system with the poses eliminated (:func:`solve_step`)."""
+    system with the poses eliminated (:func:`solve_step`). ``extrapolate``: a step that lowers
+    J by more than :data:`EXTRAPOLATE` times the linear model's prediction is doubled while J
+    keeps falling (at most 64 times): where Gauss–Newton converges linearly (below) its steps
+    are several times too short, and a cost costs a fraction of a linearisation."""
 
-    def __init__(self, problem: Problem) -> None:
+    def __init__(self, problem: Problem, extrapolate: bool = False) -> None:
         self.problem = problem
+        self.extrapolate = extrapolate
 
     def linearise(self, point: _Point) -> tuple[_Point, Normal]:
         assert point.e is not None and point.VV is not None  # its cost was computed
@@ -313,12 +318,53 @@ class _Reduced:
         # of positive weights times squares), so one scalar test stands for both arrays
         if not math.isfinite(pred) and not (np.isfinite(dg).all() and np.isfinite(dp).all()):
             return None
-        return _Point(apply_step(self.problem, point.state, dg, dp, ne.basis)), pred
+        trial = _Point(apply_step(self.problem, point.state, dg, dp, ne.basis))
+        if not self.extrapolate or point.value is None:
+            return trial, pred
+        best = self.cost(trial)
+        if not point.value - best > EXTRAPOLATE * pred:
+            return trial, pred
+        chosen, t = trial, 1.0
+        while t < 64.0:
+            t *= 2.0
+            further = _Point(apply_step(self.problem, point.state, t * dg, t * dp, ne.basis))
+            value = self.cost(further)
+            if not value < best:
+                break
+            chosen, best = further, value
+        # an extrapolated step is judged by what it achieved (ρ = 1): the linear model's
+        # prediction is for the step it solved for, not for a multiple of it
+        return chosen, (pred if chosen is trial else point.value - best)
 
     def cost(self, point: _Point) -> float:
+        if point.value is not None:  # computed when the step was extrapolated
+            return point.value
         point.VV = rotated_fields(self.problem, point.state)  # R_i f_s: residuals', Jacobian's
         point.e = residuals(self.problem, point.state, point.VV)
-        return _cost(point.e)
+        point.value = _cost(point.e)
+        return point.value
+
+
+#: A step lowering J by more than this times the prediction is extrapolated
+#: (:class:`_Reduced`): ρ stays near 1.9 through a linear convergence, near 1 otherwise.
+EXTRAPOLATE = 1.5
+
+
+#: From this many poses on (samples mode's one-sample poses by the thousand) a step lowering J
+#: by less than ``SETTLED`` times J/dof (the variance's unit) ends the run: the misfit of a
+#: real slow log is structured, its second-order terms add up over the poses, and Gauss–Newton
+#: converges linearly there (ρ ≈ 1.9, each gain ~0.76 of the last), so ``tol``'s rule would
+#: take some 25 iterations more for a change of J under 1e-3 of its unit: a few hundredths of
+#: a standard error.
+SETTLED_POSES = 2000
+SETTLED = 1e-4
+
+
+def many_poses(problem: Problem) -> bool:
+    """Whether ``problem`` has :data:`SETTLED_POSES` or more poses: its own stopping rule and
+    extrapolated steps (:func:`solve_alone`), so it is solved alone, never stepped with others
+    (:mod:`.lockstep` keeps the rules of fewer poses)."""
+    return problem.n >= SETTLED_POSES
 
 
 class Nielsen(Schedule):
@@ -327,14 +373,18 @@ class Nielsen(Schedule):
     when a step lowers J by less than ``tol·(1 + J)``, or by less than 1e-8 J with the linear
     model predicting the decrease to 10 % (Gauss–Newton's quadratic regime: the next step would
     change J by far less than anything statistically meaningful, J being a χ² variate of size
-    ~dof), or when a refused step's prediction is below ``1e-3 tol (1 + J)`` at small λ.
+    ~dof), or when a refused step's prediction is below ``1e-3 tol (1 + J)`` at small λ, or
+    (``settled`` > 0) when a step lowers J by less than ``settled · J``.
     ``known_minimum``: the J of a minimum already found from another start; once in the
     quadratic regime with the linear model predicting that very value, this start is heading
     for it and is abandoned."""
 
-    def __init__(self, lam: float, tol: float, known_minimum: float | None) -> None:
+    def __init__(
+        self, lam: float, tol: float, known_minimum: float | None, settled: float = 0.0
+    ) -> None:
         super().__init__(lam)
         self.nu, self.tol, self.known, self.last_rho = 2.0, tol, known_minimum, 0.0
+        self.settled = settled
 
     def done_before_trying(self, cost: float, predicted: float) -> bool:
         known = self.known
@@ -349,7 +399,8 @@ class Nielsen(Schedule):
         self.lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
         self.nu = 2.0
         quadratic = abs(rho - 1.0) < 0.1 and gain <= 1e-8 * cost
-        return gain <= self.tol * (1.0 + cost) or quadratic or cost < 1e-300
+        settled = gain <= self.settled * cost
+        return gain <= self.tol * (1.0 + cost) or quadratic or settled or cost < 1e-300
 
     def refused(self, predicted: float, cost: float) -> bool | None:
         if predicted <= self.tol * 1e-3 * (1.0 + cost) and self.lam < 1e-3:
@@ -369,9 +420,11 @@ def solve_alone(
 ) -> Result:
     """:func:`levenberg_marquardt` in this thread, whatever service is set: the shared loop
     (:func:`.marquardt.minimise`) with the rules of :class:`Nielsen`."""
-    reduced = _Reduced(problem)
+    many = many_poses(problem)
+    reduced = _Reduced(problem, extrapolate=many)
     start = _Point(state)
     cost = reduced.cost(start)
-    out = minimise(reduced, start, cost, Nielsen(lam, tol, known_minimum), max_iter)
+    settled = SETTLED / max(problem.dof, 1) if many else 0.0
+    out = minimise(reduced, start, cost, Nielsen(lam, tol, known_minimum, settled), max_iter)
     assert out.point.e is not None
     return Result(out.point.state, out.point.e, out.cost, out.iterations, out.converged)

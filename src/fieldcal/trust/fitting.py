@@ -48,6 +48,7 @@ from .pose_noise import (
     initial_variances,
     noise_reported,
     widening,
+    with_variances,
 )
 from .targets import Targets
 from .verdict import PoseFindings, ReferenceCheck, judge
@@ -157,6 +158,38 @@ def _noise_round(
     return cal, ml, current, ev, noise
 
 
+#: From this many poses on (samples and windows modes), every flagged pose is dropped in one
+#: round: each weighs about 1/N in the fit, so dropping one barely changes the others' tests,
+#: and a refit per pose would cost thousands of fits on a long log.
+MANY_POSES = 200
+
+
+def _worst(p_min: Array, flagged: NDArray[np.bool_], spare: int) -> NDArray[np.intp]:
+    """The poses to drop this round (``p_min``: each pose's smallest p-value): the worst
+    flagged one, or with :data:`MANY_POSES` or more every flagged one, worst first, at most
+    ``spare``."""
+    order = np.argsort(np.where(flagged, p_min, np.inf), kind="stable")
+    count = int(flagged.sum()) if len(p_min) >= MANY_POSES else 1
+    return order[: max(1, min(count, spare))]
+
+
+#: From this many poses on, the pose-level variances to estimate are first estimated on an
+#: evenly spaced subset of :data:`SUBSET_POSES`, the whole problem's first fit starting from
+#: them: its fixed point (:func:`.pose_noise.estimate`) is then one or two refits away instead of
+#: a first fit with a guess a thousand times off and refits of tens of iterations each.
+SUBSET_NOISE_POSES = 2000
+SUBSET_POSES = 400
+
+
+def _subset_variances(runner: _Runner, stats: PoseStats, free: tuple[str, ...]) -> PoseStats:
+    """``stats`` with the variances of ``free`` estimated on :data:`SUBSET_POSES` of its poses."""
+    index = np.unique(np.linspace(0, stats.n_poses - 1, SUBSET_POSES).round().astype(np.int64))
+    sub = stats.subset(index)
+    cal = runner.method_fit(sub, index, None)
+    noise = _noise_round(runner, cal, sub, index, free)[4]
+    return with_variances(stats, {s: noise.variance[s] for s in free})
+
+
 def fit_trusted(
     method: Method,
     stats: PoseStats,
@@ -206,6 +239,8 @@ def fit_trusted(
     }
     free = tuple(s for s in stats.sensors if fixed[s] is None)
     start = initial_variances(stats, fixed)
+    if free and n_total >= SUBSET_NOISE_POSES:
+        start = _subset_variances(runner, start, free)
     cal = runner.method_fit(start, keep, None)
     first_options = dict(cal.options)  # the cold fit's account (starts tried), for provenance
     cal, ml, current, ev, noise = _noise_round(runner, cal, start, keep, free)
@@ -217,24 +252,24 @@ def fit_trusted(
         flagged = tests.flagged(alpha)
         if not flagged.any():
             break
-        p_min = tests.p_value.min(axis=1)
-        worst = int(np.argmin(np.where(flagged, p_min, np.inf)))
         if len(keep) - 1 < min_keep:
             left = int(flagged.sum())
             break
-        kind, why = tests.kind(worst, alpha, current)
-        column = int(np.argmin(tests.p_value[worst]))
-        rejected.append(
-            RejectedPose(
-                index=int(keep[worst]),
-                sensor=kind,
-                statistic=float(tests.statistic[worst, column]),
-                p_value=float(tests.p_value[worst, column]),
-                reason=REASONS[why],
+        worst = _worst(tests.p_value.min(axis=1), flagged, len(keep) - min_keep)
+        for i in worst:
+            kind, why = tests.kind(int(i), alpha, current)
+            column = int(np.argmin(tests.p_value[i]))
+            rejected.append(
+                RejectedPose(
+                    index=int(keep[i]),
+                    sensor=kind,
+                    statistic=float(tests.statistic[i, column]),
+                    p_value=float(tests.p_value[i, column]),
+                    reason=REASONS[why],
+                )
             )
-        )
-        if on_progress is not None:
-            on_progress(f"dropped pose {int(keep[worst])} ({kind})")
+            if on_progress is not None:
+                on_progress(f"dropped pose {int(keep[i])} ({kind})")
         local = np.delete(np.arange(len(keep)), worst)
         keep = keep[local]
         sub = current.subset(local)  # the current noise model as the start

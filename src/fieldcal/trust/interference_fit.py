@@ -35,8 +35,6 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation, Slerp
 
 from ..interference import InterferenceModel
 
@@ -115,6 +113,8 @@ def _regression(mag: Array, R: Array, U: Array, h0: Array) -> tuple[Array, Array
     def projected(x: Array) -> Array:
         X = design(x)
         return np.ravel(mag - X @ np.linalg.lstsq(X, mag, rcond=None)[0])
+
+    from scipy.optimize import least_squares  # here: its import costs a calibration 0.2 s
 
     x = least_squares(projected, np.zeros(2), method="lm", xtol=1e-12, ftol=1e-14).x
     X = design(x)
@@ -269,6 +269,8 @@ def held_trajectory(
             "it needs the orientation at every sample: a flight log with the autopilot's "
             "attitude, or continuous motion with a gyroscope (--poses continuous)"
         )
+    from scipy.spatial.transform import Rotation, Slerp  # here: a calibration's import saved
+
     at = np.asarray(time, dtype=float)[::epoch_step][: len(cal_rotations)]
     keys = Rotation.from_matrix(np.asarray(cal_rotations)[: len(at)])
     clipped = np.clip(time, at[0], at[-1])

@@ -22,11 +22,13 @@ from scipy.special import chdtrc
 
 from ...calibration import Calibration, SensorCalibration
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN
-from ...likelihood.levenberg import Result, levenberg_marquardt
+from ...geometry.rotations import wahba_pair
+from ...likelihood.levenberg import Result, levenberg_marquardt, many_poses
 from ...likelihood.lockstep import Request, lockstep
 from ...likelihood.pose_model import (
     Problem,
     State,
+    bias_drift,
     build_problem,
     field,
     state_from_calibration,
@@ -53,6 +55,15 @@ FEW_POSES = 12
 PENCIL_POSES = 12
 #: Certificate p-value below which every start runs.
 P_RETRY = 0.01
+#: Above this many poses (samples and windows modes: thousands of one-sample poses) the further
+#: starts run on an evenly spaced subset of this many: whether a start leads to another
+#: minimum is a matter of the poses' spread, which the subset keeps; a start that beats the
+#: best there is then run on every pose from the subset's optimum.
+SUBSET_POSES = 400
+#: Above this many poses a cold fit searches its starts on :data:`SUBSET_POSES` evenly spaced
+#: poses, then runs on every pose from the subset's best (its globals, each pose's rotation by
+#: Wahba): the same minimum, reached in a few iterations of the whole problem instead of fifty.
+COLD_SUBSET_POSES = 2000
 
 
 def _temperature_model(
@@ -100,7 +111,7 @@ def _solve_starts(
     """LM from each start, each told ``known`` (the J of a minimum found before them): one at a
     time for one start, else stepped together (:func:`~fieldcal.likelihood.lockstep.
     lockstep`, the same result per start as alone). A singular system raises, as alone."""
-    if len(states) < 2:
+    if len(states) < 2 or many_poses(problem):  # thousands: the single solver's own rules
         return [
             levenberg_marquardt(problem, s, max_iter=max_iter, tol=tol, known_minimum=known)
             for s in states
@@ -156,7 +167,7 @@ def fit(
     _check_count(stats)
     check_spread(stats)  # refuse rotations about one axis before any fit
     problem = build_problem(stats, body_frame)
-    search = _Search(problem, int(max_iter), float(tol))
+    search = _Search(problem, int(max_iter), float(tol), stats)
     best = search.run(stats.n_poses, initial)
     state = _canonical(problem, best.state)
     sensor_cals = {
@@ -216,8 +227,10 @@ class _Search:
     """The starts tried (closed-form, then more when the poses are few or the certificate
     doubtful) and the first to reach the lowest J."""
 
-    def __init__(self, problem: Problem, max_iter: int, tol: float) -> None:
-        self.problem, self.max_iter, self.tol = problem, max_iter, tol
+    def __init__(
+        self, problem: Problem, max_iter: int, tol: float, stats: PoseStats | None = None
+    ) -> None:
+        self.problem, self.max_iter, self.tol, self.stats = problem, max_iter, tol, stats
         self.best: Result | None = None
         self.tried: list[str] = []
         self.iterations = 0
@@ -235,6 +248,48 @@ class _Search:
             if self.best is None or res.cost < self.best.cost - 1e-9 * (1 + res.cost):
                 self.best = res
 
+    def _screened(
+        self, candidates: list[tuple[State | None, str]], best: Result
+    ) -> list[tuple[State | None, str]]:
+        """The ``candidates`` run on :data:`SUBSET_POSES` evenly spaced poses beside the best
+        result so far; those that reach a lower J there come back, with the subset's globals
+        (their rotations from the start), to run on every pose. The others count as tried."""
+        index, stats = self._subset()
+        sub = build_problem(stats, self.problem.frame)
+        todo = [(state, name) for state, name in candidates if state is not None]
+        base = levenberg_marquardt(
+            sub, _restricted(best.state, index), max_iter=self.max_iter, tol=self.tol
+        )
+        states = [_restricted(state, index) for state, _ in todo]
+        results = _solve_starts(sub, states, self.max_iter, self.tol, base.cost)
+        back: list[tuple[State | None, str]] = []
+        for (state, name), res in zip(todo, results, strict=True):
+            self.iterations += res.iterations
+            if res.cost < base.cost - 1e-9 * (1.0 + base.cost):
+                back.append((_with_globals(state, res.state), name))
+            else:
+                self.tried.append(name)
+        return back
+
+    def _subset(self) -> tuple[NDArray[np.intp], PoseStats]:
+        assert self.stats is not None
+        index = np.unique(np.linspace(0, self.problem.n - 1, SUBSET_POSES).round().astype(int))
+        return index, self.stats.subset(index)
+
+    def _from_subset(self) -> Result:
+        """A cold fit of many poses (:data:`COLD_SUBSET_POSES`): every start searched on the
+        subset, the best run on all the poses."""
+        _, stats = self._subset()
+        sub = _Search(build_problem(stats, self.problem.frame), self.max_iter, self.tol, stats)
+        found = sub.run(stats.n_poses, None)
+        self.iterations += sub.iterations
+        state = found.state.copy()
+        state.rotations = rotations_for(self.problem, state)
+        self.consider([(state, "subset")])
+        self.tried = [*sub.tried, "subset"]
+        assert self.best is not None
+        return self.best
+
     def label(self, model: tuple[str, str]) -> str:
         """A start's name: its sensors' models (one when they agree)."""
         one = len(self.problem.sensors) == 1 or model[0] == model[1]
@@ -243,6 +298,8 @@ class _Search:
     def run(self, n: int, initial: Calibration | None) -> Result:
         """The best result over the starts for ``n`` poses (``initial``: a warm start)."""
         problem = self.problem
+        if initial is None and n >= COLD_SUBSET_POSES and self.stats is not None:
+            return self._from_subset()
         if initial is not None:
             self.consider([(state_from_calibration(problem, initial), "initial")])
             starts = STARTS
@@ -265,10 +322,43 @@ class _Search:
             ]
             if n < PENCIL_POSES:
                 more += [(state, f"pencil{k}") for k, state in enumerate(few_pose_starts(problem))]
-            self.consider(more)
+            if n > SUBSET_POSES and self.stats is not None and best is not None:
+                self.consider(self._screened(more, best))
+            else:
+                self.consider(more)
         if self.best is None:
             raise ValueError(
                 "no closed-form start: the pose means do not outline an ellipsoid; "
                 "add poses with each axis pointing up and down"
             )
         return self.best
+
+
+def _restricted(state: State, index: NDArray[np.intp]) -> State:
+    """``state`` on the poses ``index`` (their rotations)."""
+    out = state.copy()
+    out.rotations = out.rotations[index]
+    return out
+
+
+def _with_globals(state: State, source: State) -> State:
+    """``state``'s rotations with ``source``'s gains, biases, dip and temperature terms."""
+    out = source.copy()
+    out.rotations = state.rotations.copy()
+    return out
+
+
+def rotations_for(problem: Problem, state: State) -> Array:
+    """Every pose's rotation for ``state``'s gains, biases and dip: each sensor's direction
+    ``K⁻¹(μ − b)`` (Eq. 2), the pair's rotation by Wahba in closed form (one sensor: the
+    smallest rotation onto its field)."""
+    dirs = []
+    for s in problem.sensors:
+        drift = bias_drift(problem, state, s)
+        offset = problem.means[s] - state.biases[s] - (0.0 if drift is None else drift)
+        u = np.linalg.solve(state.gains[s], offset.T).T
+        dirs.append(u / np.linalg.norm(u, axis=1, keepdims=True))
+    if not problem.joint:
+        return min_rotations(field(problem, problem.sensors[0], 0.0), dirs[0])
+    fields = [field(problem, s, state.dip) for s in problem.sensors]
+    return wahba_pair(dirs[0], dirs[1], fields[0], fields[1])
