@@ -37,7 +37,7 @@ so the accelerometer's residuals reach the gyroscope's gain and bias (:func:`acc
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,12 +53,14 @@ __all__ = [
     "TEMP_SENSORS",
     "Blocks",
     "Data",
+    "KnotFactors",
     "State",
     "accel_block",
     "accel_columns",
     "accel_of",
     "columns",
     "mag_block",
+    "mag_of",
     "powers",
 ]
 
@@ -101,10 +103,49 @@ class Data:
     #: The raw rate's derivative at each sample (rad/s², :func:`rate_slope`); computed from
     #: the whole log when not given (a chunk of it must carry its slice).
     gyro_slope: Array | None = None
+    #: Knots only (:mod:`.knots`): each row the mean over a window of samples, ``M_k`` (n, 3, 3)
+    #: the mean turn from the knot to the window's samples (``R_i = ΔR_i R_k``), the raw
+    #: rates' mean outer product (n, 3, 3, for the lever arm's mean acceleration) and the
+    #: gyroscope pre-integrated between consecutive knots.
+    mixing: Array | None = None
+    gyro_second: Array | None = None
+    factors: KnotFactors | None = None
 
     def __post_init__(self) -> None:
         if self.gyro_slope is None:
             self.gyro_slope = rate_slope(self.time, self.gyro)
+
+    def rows(self, lo: int, stop: int) -> Data:
+        """Rows ``lo..stop−1`` (a chunk): every per-row array sliced (covariates included,
+        whatever their name), the knots' factors ``lo..stop−2`` (those between the rows)."""
+        n = len(self.time)
+        changes: dict[str, object] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray) and value.ndim >= 1 and len(value) == n:
+                changes[f.name] = value[lo:stop]
+        if self.factors is not None:
+            changes["factors"] = self.factors.rows(lo, max(lo, stop - 1))
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+
+@dataclass
+class KnotFactors:
+    """The gyroscope pre-integrated between consecutive knots (:mod:`.knots`): at the gyroscope
+    parameters ``anchor`` the turn ``Γ̂_k`` (m, 3, 3) from knot ``k`` to ``k + 1`` (body frame,
+    ``R_{k+1} = Γ_kᵀ R_k``), its first-order change with those parameters ``Γ(θ) = Γ̂ Exp(G
+    (θ − anchor))`` (``G``: (m, 3, 12 + 3 K), gain row-major, bias, then temperature orders),
+    and ``Σ Δt²`` over its intervals (m,): its noise is ``σ_ω² Σ Δt²`` per axis."""
+
+    turn: Array
+    jacobian: Array
+    dt2: Array
+    anchor: Array
+
+    def rows(self, lo: int, stop: int) -> KnotFactors:
+        return KnotFactors(
+            self.turn[lo:stop], self.jacobian[lo:stop], self.dt2[lo:stop], self.anchor
+        )
 
 
 def rate_slope(time: Array, gyro: Array) -> Array:
@@ -220,37 +261,60 @@ def accel_columns(state: State) -> NDArray[np.intp]:
     )
 
 
-def lever_terms(state: State, raw: Array, slope: Array) -> tuple[Array, Array, Array]:
+def lever_terms(
+    state: State, raw: Array, slope: Array, second: Array | None = None
+) -> tuple[Array, Array, Array]:
     """Eq. C1a–C1b at every sample: ``ℓ`` (n, 3, m/s²), ``∂ℓ/∂r`` (n, 3, 3) and ``∂ℓ/∂(K_g,
-    b_g)`` (n, 3, 12), from the raw rates and their derivative ``slope``."""
+    b_g)`` (n, 3, 12), from the raw rates and their derivative ``slope``.
+
+    A knot's (``second``: the raw rates' mean outer product over its window, ``raw`` and
+    ``slope`` their means) is the window's mean, exactly: ``ℓ`` is linear in ``ω̇`` and
+    ``[ω]×² r = ω (ω·r) − |ω|² r`` is linear in ``Ω = ⟨ω ωᵀ⟩``, so with ``u_a = K_g⁻¹[:, a]``
+    the gain's column ``(a, b)`` is ``−u_a (Ω r)_b − (r·u_a) Ω[:, b] + 2 r (Ω u_a)_b
+    − (∂ℓ/∂ω̇ K_g⁻¹)[:, a] ω̇_b``; a sample's ``Ω`` is ``ω ωᵀ``."""
     Ginv = np.linalg.inv(state.gyro_gain)
-    w = (raw - state.gyro_bias) @ Ginv.T
+    x = raw - state.gyro_bias
+    w = x @ Ginv.T
     wd = slope @ Ginv.T
+    if second is None:
+        Om = w[:, :, None] * w[:, None, :]
+    else:  # ⟨(r − b)(r − b)ᵀ⟩ = ⟨r rᵀ⟩ − b r̄ᵀ − r̄ bᵀ + b bᵀ, mapped by K_g⁻¹
+        b = state.gyro_bias
+        xx = second - b[None, :, None] * raw[:, None, :] - raw[:, :, None] * b[None, None, :]
+        Om = Ginv @ (xx + np.outer(b, b)) @ Ginv.T
     r = state.lever
-    W = hat(w)
-    d_lever = hat(wd) + W @ W
+    trace = np.trace(Om, axis1=1, axis2=2)
+    d_lever = hat(wd) + Om - trace[:, None, None] * np.eye(3)
     ell = (d_lever @ r[:, None])[:, :, 0]
     wr = w @ r
-    eye = np.eye(3)
     d_w = (
-        wr[:, None, None] * eye
+        wr[:, None, None] * np.eye(3)
         + w[:, :, None] * r[None, None, :]
         - 2.0 * r[None, :, None] * w[:, None, :]
     )
-    A = d_w @ Ginv  # ∂ℓ/∂ω · K_g⁻¹
     B = -hat(r) @ Ginv  # ∂ℓ/∂ω̇ · K_g⁻¹
     n = len(raw)
+    Omr = Om @ r  # (n, 3)
+    OmU = Om @ Ginv  # (n, 3, 3): [b, a] = (Ω u_a)_b
+    rU = r @ Ginv  # (3,): r · u_a
     d_gyro = np.empty((n, 3, 12))
-    # column 3a + b: −(A)[:, a] ω_b − (B)[:, a] ω̇_b
-    d_gyro[:, :, :9] = -(
-        A[:, :, :, None] * w[:, None, None, :] + B[None, :, :, None] * wd[:, None, None, :]
-    ).reshape(n, 3, 9)
-    d_gyro[:, :, 9:] = -A
+    # column 3a + b
+    gain = (
+        Ginv[None, :, :, None] * Omr[:, None, None, :]
+        + rU[None, None, :, None] * Om[:, :, None, :]
+        - 2.0 * r[None, :, None, None] * np.swapaxes(OmU, 1, 2)[:, None, :, :]
+        + B[None, :, :, None] * wd[:, None, None, :]
+    )
+    d_gyro[:, :, :9] = -gain.reshape(n, 3, 9)
+    d_gyro[:, :, 9:] = -(d_w @ Ginv)
     return ell, d_lever, d_gyro
 
 
 def powers(d: Array, order: int) -> Array:
-    """``d^k`` for ``k = 1..order``: (n, order)."""
+    """``d^k`` for ``k = 1..order``: (n, order). A knot's ``d`` is already its window's mean
+    powers (n, K ≥ order, :mod:`.knots`): their first ``order`` columns."""
+    if d.ndim == 2:
+        return np.asarray(d[:, :order], dtype=np.float64)
     return np.asarray(d[:, None] ** np.arange(1, order + 1)[None, :], dtype=np.float64)
 
 
@@ -282,19 +346,26 @@ def accel_block(
     temperature: Array | None = None,
     gyro: Array | None = None,
     slope: Array | None = None,
+    mixing: Array | None = None,
+    second: Array | None = None,
 ) -> Blocks:
     """Eq. C1: residuals and Jacobians of the accelerometer at every sample; with
     ``temperature`` (``T_j − T_ref``) and terms in ``state.temps``, the bias follows it. With
     the raw rates ``gyro`` and their derivative ``slope`` the lever arm's acceleration is in
     the prediction and the Jacobian has :func:`accel_columns`' columns; without, only the
-    accelerometer's (:func:`columns`)."""
+    accelerometer's (:func:`columns`). Knots (:mod:`.knots`): ``mixing`` ``M_k`` turns the
+    knot's gravity into the window's mean, ``M_k R_k g`` (``∂/∂δ = −K M [R g]×``), and
+    ``second`` gives the lever arm's window mean (:func:`lever_terms`)."""
     accel, Jc = _thermal(state, "accel", accel, temperature)
     u = state.rotations @ GRAVITY  # (n, 3) body-frame "up"
     Ka = state.accel_gain
     Jt = -Ka @ hat(u)  # d(K R g)/dδ = −K [R g]×
+    if mixing is not None:
+        Jt = -Ka @ (mixing @ hat(u))
+        u = (mixing @ u[:, :, None])[:, :, 0]
     lever = None
     if gyro is not None and slope is not None:
-        lever = lever_terms(state, gyro, slope)
+        lever = lever_terms(state, gyro, slope, second)
         u = u + lever[0] / STANDARD_GRAVITY
     pred = u @ Ka.T + state.accel_bias
     n = len(u)
@@ -313,24 +384,44 @@ def accel_block(
 
 
 def accel_of(state: State, data: Data) -> Blocks:
-    """:func:`accel_block` of a whole log (or chunk) with its lever arm (Eq. C1–C1b)."""
-    return accel_block(state, data.accel, data.temperature, data.gyro, data.gyro_slope)
+    """:func:`accel_block` of a whole log (or chunk, or knots) with its lever arm (Eq. C1–C1b)."""
+    return accel_block(
+        state,
+        data.accel,
+        data.temperature,
+        data.gyro,
+        data.gyro_slope,
+        data.mixing,
+        data.gyro_second,
+    )
 
 
-def mag_block(state: State, mag: Array, temperature: Array | None = None) -> Blocks:
-    """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature as
-    in :func:`accel_block`)."""
+def mag_of(state: State, data: Data) -> Blocks:
+    """:func:`mag_block` of a whole log (or chunk, or knots)."""
+    return mag_block(state, data.mag, data.temperature, data.mixing)
+
+
+def mag_block(
+    state: State, mag: Array, temperature: Array | None = None, mixing: Array | None = None
+) -> Blocks:
+    """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature and
+    a knot's ``mixing`` as in :func:`accel_block`)."""
     mag, Jc = _thermal(state, "mag", mag, temperature)
     v = state.rotations @ magnetic_reference(state.dip)
+    dv = state.rotations @ magnetic_derivative(state.dip)
     Km = state.mag_gain
+    Jt = -Km @ hat(v)
+    if mixing is not None:
+        Jt = -Km @ (mixing @ hat(v))
+        v = (mixing @ v[:, :, None])[:, :, 0]
+        dv = (mixing @ dv[:, :, None])[:, :, 0]
     pred = v @ Km.T + state.mag_bias
     n = len(v)
     Jp = np.zeros((n, 3, 13))
     for r in range(3):
         Jp[:, r, 3 * r : 3 * r + 3] = v
     Jp[:, :, 9:12] = np.eye(3)
-    Jp[:, :, 12] = (state.rotations @ magnetic_derivative(state.dip)) @ Km.T
-    Jt = -Km @ hat(v)
+    Jp[:, :, 12] = dv @ Km.T
     if Jc.shape[2]:
         Jp = np.concatenate([Jp, Jc], axis=2)
     return Blocks(mag - pred, Jt, Jp)

@@ -26,8 +26,9 @@ from scipy.linalg import cholesky_banded
 from scipy.linalg.lapack import dtbtrs
 
 from ...likelihood.marquardt import Schedule, minimise
-from .model import Data, State, accel_block, accel_columns, columns, mag_block
-from .preintegration import GyroFactors, thermal_factors
+from .knots import gyro_vector
+from .model import Data, KnotFactors, State, accel_columns, accel_of, columns, mag_of
+from .preintegration import GyroFactors, knot_factors, thermal_factors
 
 __all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
 
@@ -96,21 +97,12 @@ def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
     """Epochs ``lo..hi`` and the next one (the gyroscope's factors ``lo..hi−1`` need it)."""
     stop = min(hi + 1, len(data.time))
     sub = dataclasses.replace(state, rotations=state.rotations[lo:stop])
-    part = Data(
-        data.time[lo:stop],
-        data.accel[lo:stop],
-        data.mag[lo:stop],
-        data.gyro[lo:stop],
-        data.hold,
-        None if data.temperature is None else data.temperature[lo:stop],
-        None if data.gyro_slope is None else data.gyro_slope[lo:stop],
-    )
-    return sub, part
+    return sub, data.rows(lo, stop)
 
 
-def _slope(data: Data) -> Array:
-    assert data.gyro_slope is not None  # Data computes it
-    return data.gyro_slope
+def _own(sub: State, part: Data, m: int) -> tuple[State, Data]:
+    """The chunk's own ``m`` epochs (without the next one)."""
+    return dataclasses.replace(sub, rotations=sub.rotations[:m]), part.rows(0, m)
 
 
 def cost(state: State, data: Data, w: Weights) -> float:
@@ -119,11 +111,9 @@ def cost(state: State, data: Data, w: Weights) -> float:
     n = len(data.time)
     for lo, hi in _chunks(n):
         sub, part = _part(state, data, lo, hi)
-        m = hi - lo
-        sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
-        d = None if part.temperature is None else part.temperature[:m]
-        ra = accel_block(sub_m, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]).residual
-        rm = mag_block(sub_m, part.mag[:m], d).residual
+        own, rows = _own(sub, part, hi - lo)
+        ra = accel_of(own, rows).residual
+        rm = mag_of(own, rows).residual
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
         if len(sub.rotations) > 1:
@@ -176,17 +166,11 @@ def _assemble(
     rhs_p: Array,
 ) -> float:
     """Add epochs ``lo..hi`` (and the factors leaving them) to the normal equations."""
-    m = hi - lo
     total = 0.0
-    own = dataclasses.replace(sub, rotations=sub.rotations[:m])
-    d = None if part.temperature is None else part.temperature[:m]
+    own, rows = _own(sub, part, hi - lo)
     for block, weight, sl in (
-        (
-            accel_block(own, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]),
-            w.accel[lo:hi],
-            accel_columns(sub),
-        ),
-        (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
+        (accel_of(own, rows), w.accel[lo:hi], accel_columns(sub)),
+        (mag_of(own, rows), w.mag[lo:hi], columns(sub, "mag")),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual
         WJtT = np.swapaxes(Jt * weight[:, None, None], 1, 2)
@@ -223,7 +207,10 @@ def _assemble(
 
 def state_factors(sub: State, part: Data) -> GyroFactors:
     """The gyroscope's factors of ``part`` (a chunk or the whole log) at ``sub``, the bias
-    following temperature when it has terms."""
+    following temperature when it has terms; between knots, pre-integrated
+    (:func:`.preintegration.knot_factors`)."""
+    if part.factors is not None:
+        return _knot_factors(sub, part.factors)
     return thermal_factors(
         sub.rotations,
         part.time,
@@ -234,6 +221,15 @@ def state_factors(sub: State, part: Data) -> GyroFactors:
         sub.temps.get("gyro"),
         part.temperature,
     )
+
+
+def _knot_factors(sub: State, factors: KnotFactors) -> GyroFactors:
+    """The knots' factors at ``sub``'s gyroscope (its temperature orders' columns only)."""
+    orders = (len(factors.anchor) - 12) // 3
+    width = 12 + 3 * len(sub.temps.get("gyro", ()))
+    moved = (gyro_vector(sub, orders) - factors.anchor)[:width]
+    f = knot_factors(sub.rotations, factors.turn, factors.jacobian[:, :, :width], moved)
+    return dataclasses.replace(f, dt=np.sqrt(factors.dt2))
 
 
 def schur(normal: Normal, damping: float = 0.0) -> tuple[Array, Array, Array, Array]:
