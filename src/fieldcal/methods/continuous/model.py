@@ -62,6 +62,7 @@ __all__ = [
     "mag_block",
     "mag_of",
     "powers",
+    "sample_residuals",
 ]
 
 Array = NDArray[np.float64]
@@ -425,3 +426,22 @@ def mag_block(
     if Jc.shape[2]:
         Jp = np.concatenate([Jp, Jc], axis=2)
     return Blocks(mag - pred, Jt, Jp)
+
+
+def sample_residuals(state: State, data: Data) -> tuple[Array, Array]:
+    """The accelerometer's and magnetometer's residuals (n, 3) at every sample (Eq. C1–C2,
+    ``state.rotations`` one per sample), without the Jacobians :func:`accel_of` and
+    :func:`mag_of` also form: ``ℓ = ω̇ × r + ω (ω·r) − |ω|² r``."""
+    Ginv = np.linalg.inv(state.gyro_gain)
+    w = (data.gyro - state.gyro_bias) @ Ginv.T
+    assert data.gyro_slope is not None  # Data computes it
+    wd = data.gyro_slope @ Ginv.T
+    r = state.lever
+    ell = np.cross(wd, r) + w * (w @ r)[:, None] - np.sum(w * w, axis=1)[:, None] * r
+    accel = _thermal(state, "accel", data.accel, data.temperature)[0]
+    mag = _thermal(state, "mag", data.mag, data.temperature)[0]
+    up = state.rotations @ GRAVITY + ell / STANDARD_GRAVITY
+    field = state.rotations @ magnetic_reference(state.dip)
+    ra: Array = accel - (up @ state.accel_gain.T + state.accel_bias)
+    rm: Array = mag - (field @ state.mag_gain.T + state.mag_bias)
+    return ra, rm

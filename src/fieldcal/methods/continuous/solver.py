@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -275,10 +276,20 @@ class _Trajectory:
     """The continuous problem for the shared loop (:func:`fieldcal.likelihood.marquardt.
     minimise`): a point is a :class:`State`; its linearisation the banded normal equations."""
 
-    def __init__(self, data: Data, w: Weights, free: NDArray[np.bool_]) -> None:
+    def __init__(
+        self,
+        data: Data,
+        w: Weights,
+        free: NDArray[np.bool_],
+        on_iteration: Callable[[int], None] | None = None,
+    ) -> None:
         self.data, self.w, self.free = data, w, free
+        self.on_iteration, self.iterations = on_iteration, 0
 
     def linearise(self, state: State) -> tuple[State, Normal]:
+        if self.on_iteration is not None:
+            self.on_iteration(self.iterations)
+        self.iterations += 1
         return state, normal_equations(state, self.data, self.w)
 
     def level(self, linear: tuple[State, Normal]) -> float | None:
@@ -320,7 +331,13 @@ class _Fivefold(Schedule):
 
 
 def levenberg_marquardt(
-    state: State, data: Data, w: Weights, *, max_iter: int = 50, tol: float = 1e-3
+    state: State,
+    data: Data,
+    w: Weights,
+    *,
+    max_iter: int = 50,
+    tol: float = 1e-3,
+    on_iteration: Callable[[int], None] | None = None,
 ) -> tuple[State, int, bool]:
     """Minimise ``½ Σ w ‖r‖²`` from ``state``; returns the state, iterations and whether a
     step lowered the cost by less than ``tol`` (converged) before ``max_iter``.
@@ -329,8 +346,11 @@ def levenberg_marquardt(
     moves the estimate by about ``sqrt(2 tol)`` standard errors (Mahalanobis), so the default
     stops when the steps are a twentieth of the error bars or less. The shared loop
     (:func:`fieldcal.likelihood.marquardt.minimise`) with the rules of :class:`_Fivefold`;
-    parameters a prior holds (``w.prior.free``) do not move."""
+    parameters a prior holds (``w.prior.free``) do not move. ``on_iteration`` hears the
+    number of iterations done before each (for progress)."""
     size = len(state.vector())
     free = np.ones(size, dtype=bool) if w.prior is None else w.prior.free(size)
-    out = minimise(_Trajectory(data, w, free), state, math.nan, _Fivefold(tol), max_iter)
+    out = minimise(
+        _Trajectory(data, w, free, on_iteration), state, math.nan, _Fivefold(tol), max_iter
+    )
     return out.point, out.iterations, out.converged
