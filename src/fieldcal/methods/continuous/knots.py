@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ...geometry.rotations import exp_so3
+from ...geometry.rotations import exp_so3, hat
 from ...likelihood.temperature import MAX_ORDER
 from .model import Data, KnotFactors, State, powers
 from .preintegration import right_jacobian
@@ -143,6 +143,9 @@ def _walk(
         each[:, 0] = turn
     width = 12 + 3 * orders
     acc = np.zeros((knots, 3, width)) if jacobians else None
+    # ∂(M u)/∂θ = Σ_c u_c D_c, D_c = −⟨ΔR_i [e_c]× acc_i⟩ (module docstring)
+    spread = np.zeros((knots, 3, 3, 12)) if jacobians else None
+    axes = hat(np.eye(3))
     P_g = None if P is None else _grid(P, knots, step)
     for p in range(step):
         ph = phi_g[:, p]
@@ -157,10 +160,16 @@ def _walk(
                 acc[:, :, 12:] += extra.reshape(knots, 3, 3 * orders)
         if p + 1 < step:
             inside = (p + 1 < count)[:, None, None]
-            mean += np.where(inside, np.swapaxes(turn, 1, 2), 0.0)
+            back = np.swapaxes(turn, 1, 2)
+            mean += np.where(inside, back, 0.0)
+            if spread is not None and acc is not None:
+                term = -((back[:, None] @ axes[None]) @ acc[:, None, :, :12])
+                spread += np.where(inside[:, None], term, 0.0)
             if each is not None:
                 each[:, p + 1] = np.swapaxes(turn, 1, 2)
     out = {"mixing": mean / count[:, None, None], "turn": turn, "count": count}
+    if spread is not None:
+        out["spread"] = spread / count[:, None, None, None]
     if each is not None:
         out["each"] = each
     if acc is not None:
@@ -198,6 +207,7 @@ def reduce(data: Data, state: State, step: int) -> Data:
         averaged["temperature"] = _means(powers(data.temperature, orders), starts, count)
     g = data.gyro
     averaged["gyro_second"] = _means(g[:, :, None] * g[:, None, :], starts, count)
+    averaged["mixing_jacobian"] = joined["spread"]
     factors = KnotFactors(
         joined["turn"][:-1],
         joined["jacobian"][:-1],

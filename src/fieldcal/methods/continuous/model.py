@@ -60,6 +60,7 @@ __all__ = [
     "accel_of",
     "columns",
     "mag_block",
+    "mag_columns",
     "mag_of",
     "powers",
     "sample_residuals",
@@ -110,6 +111,8 @@ class Data:
     #: gyroscope pre-integrated between consecutive knots.
     mixing: Array | None = None
     gyro_second: Array | None = None
+    #: ``D_c`` (n, 3, 3, 12): ``∂(M_k u)/∂(K_g, b_g) = Σ_c u_c D_c`` (:mod:`.knots`).
+    mixing_jacobian: Array | None = None
     factors: KnotFactors | None = None
 
     def __post_init__(self) -> None:
@@ -349,6 +352,7 @@ def accel_block(
     slope: Array | None = None,
     mixing: Array | None = None,
     second: Array | None = None,
+    spread: tuple[Array, Array] | None = None,
 ) -> Blocks:
     """Eq. C1: residuals and Jacobians of the accelerometer at every sample; with
     ``temperature`` (``T_j − T_ref``) and terms in ``state.temps``, the bias follows it. With
@@ -356,14 +360,16 @@ def accel_block(
     the prediction and the Jacobian has :func:`accel_columns`' columns; without, only the
     accelerometer's (:func:`columns`). Knots (:mod:`.knots`): ``mixing`` ``M_k`` turns the
     knot's gravity into the window's mean, ``M_k R_k g`` (``∂/∂δ = −K M [R g]×``), and
-    ``second`` gives the lever arm's window mean (:func:`lever_terms`)."""
+    ``second`` gives the lever arm's window mean (:func:`lever_terms`); ``spread`` (``D_c``
+    and ``θ − θ̂``, :func:`_mixed`) how ``M_k`` follows the gyroscope's gain and bias."""
     accel, Jc = _thermal(state, "accel", accel, temperature)
     u = state.rotations @ GRAVITY  # (n, 3) body-frame "up"
     Ka = state.accel_gain
     Jt = -Ka @ hat(u)  # d(K R g)/dδ = −K [R g]×
+    d_mix = None
     if mixing is not None:
         Jt = -Ka @ (mixing @ hat(u))
-        u = (mixing @ u[:, :, None])[:, :, 0]
+        u, d_mix = _mixed(u, mixing, spread)
     lever = None
     if gyro is not None and slope is not None:
         lever = lever_terms(state, gyro, slope, second)
@@ -380,8 +386,40 @@ def accel_block(
         Jp = np.concatenate([Jp, Jc], axis=2)
     if lever is not None:
         K = Ka / STANDARD_GRAVITY
-        Jp = np.concatenate([Jp, K @ lever[1], K @ lever[2]], axis=2)
+        d_gyro = K @ lever[2]
+        if d_mix is not None:
+            d_gyro = d_gyro + Ka @ d_mix
+        Jp = np.concatenate([Jp, K @ lever[1], d_gyro], axis=2)
     return Blocks(accel - pred, Jt, Jp)
+
+
+def _mixed(
+    u: Array, mixing: Array, spread: tuple[Array, Array] | None
+) -> tuple[Array, Array | None]:
+    """``M_k u`` (n, 3) for a knot's direction ``u = R_k g`` or ``R_k h`` and its Jacobian with
+    respect to the gyroscope's gain and bias (n, 3, 12): ``M`` computed at the anchor ``θ̂``
+    and moved to first order, ``M(θ) u = M̂ u + Σ_c u_c D_c (θ − θ̂)`` (:mod:`.knots`)."""
+    out = (mixing @ u[:, :, None])[:, :, 0]
+    if spread is None:
+        return out, None
+    D, moved = spread
+    J = np.einsum("nc,ncij->nij", u, D)
+    return out + J @ moved, J
+
+
+def _spread(state: State, data: Data) -> tuple[Array, Array] | None:
+    """``(D_c, θ − θ̂)`` of knots (:func:`_mixed`); ``None`` for samples."""
+    if data.mixing_jacobian is None or data.factors is None:
+        return None
+    theta = np.concatenate([state.gyro_gain.ravel(), state.gyro_bias])
+    return data.mixing_jacobian, theta - data.factors.anchor[:12]
+
+
+def mag_columns(state: State, data: Data) -> NDArray[np.intp]:
+    """The columns :func:`mag_of`'s parameter Jacobian fills: the magnetometer's
+    (:func:`columns`), then for knots the gyroscope's gain and bias (through ``M_k``)."""
+    own = columns(state, "mag")
+    return own if data.mixing_jacobian is None else np.concatenate([own, np.arange(22, 34)])
 
 
 def accel_of(state: State, data: Data) -> Blocks:
@@ -394,16 +432,21 @@ def accel_of(state: State, data: Data) -> Blocks:
         data.gyro_slope,
         data.mixing,
         data.gyro_second,
+        _spread(state, data),
     )
 
 
 def mag_of(state: State, data: Data) -> Blocks:
-    """:func:`mag_block` of a whole log (or chunk, or knots)."""
-    return mag_block(state, data.mag, data.temperature, data.mixing)
+    """:func:`mag_block` of a whole log (or chunk, or knots: :func:`mag_columns`)."""
+    return mag_block(state, data.mag, data.temperature, data.mixing, _spread(state, data))
 
 
 def mag_block(
-    state: State, mag: Array, temperature: Array | None = None, mixing: Array | None = None
+    state: State,
+    mag: Array,
+    temperature: Array | None = None,
+    mixing: Array | None = None,
+    spread: tuple[Array, Array] | None = None,
 ) -> Blocks:
     """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature and
     a knot's ``mixing`` as in :func:`accel_block`)."""
@@ -412,9 +455,10 @@ def mag_block(
     dv = state.rotations @ magnetic_derivative(state.dip)
     Km = state.mag_gain
     Jt = -Km @ hat(v)
+    d_mix = None
     if mixing is not None:
         Jt = -Km @ (mixing @ hat(v))
-        v = (mixing @ v[:, :, None])[:, :, 0]
+        v, d_mix = _mixed(v, mixing, spread)
         dv = (mixing @ dv[:, :, None])[:, :, 0]
     pred = v @ Km.T + state.mag_bias
     n = len(v)
@@ -425,6 +469,8 @@ def mag_block(
     Jp[:, :, 12] = dv @ Km.T
     if Jc.shape[2]:
         Jp = np.concatenate([Jp, Jc], axis=2)
+    if d_mix is not None:
+        Jp = np.concatenate([Jp, Km @ d_mix], axis=2)
     return Blocks(mag - pred, Jt, Jp)
 
 

@@ -28,7 +28,16 @@ from scipy.linalg.lapack import dtbtrs
 
 from ...likelihood.marquardt import Schedule, minimise
 from .knots import gyro_vector
-from .model import Data, KnotFactors, State, accel_columns, accel_of, columns, mag_of
+from .model import (
+    Data,
+    KnotFactors,
+    State,
+    accel_columns,
+    accel_of,
+    columns,
+    mag_columns,
+    mag_of,
+)
 from .preintegration import GyroFactors, knot_factors, thermal_factors
 
 __all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
@@ -171,7 +180,7 @@ def _assemble(
     own, rows = _own(sub, part, hi - lo)
     for block, weight, sl in (
         (accel_of(own, rows), w.accel[lo:hi], accel_columns(sub)),
-        (mag_of(own, rows), w.mag[lo:hi], columns(sub, "mag")),
+        (mag_of(own, rows), w.mag[lo:hi], mag_columns(sub, rows)),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual
         WJtT = np.swapaxes(Jt * weight[:, None, None], 1, 2)

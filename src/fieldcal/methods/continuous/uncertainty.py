@@ -48,6 +48,7 @@ from .model import (
     accel_columns,
     accel_of,
     columns,
+    mag_columns,
     mag_of,
 )
 from .preintegration import GyroFactors
@@ -165,7 +166,7 @@ class _Jacobians:
 
 def _jacobians(state: State, data: Data) -> _Jacobians:
     f = state_factors(state, data)
-    cols = {s: columns(state, s) for s in ("mag", "gyro")}
+    cols = {"mag": mag_columns(state, data), "gyro": columns(state, "gyro")}
     cols["accel"] = accel_columns(state)
     return _Jacobians(
         accel_of(state, data),
