@@ -36,7 +36,7 @@ from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin
 from .held_blocks import Held, held_blocks
 from .initial import start
 from .knots import knot_step, reduce, sample_rates, sample_rotations
-from .model import LEVER, Data, State, accel_of, mag_of, sample_residuals
+from .model import LEVER, Data, State, residuals
 from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
@@ -96,8 +96,7 @@ def _weights(
     knots, divided by the share of its errors the fit keeps (``kept``,
     :func:`.uncertainty.kept_shares`); the gyroscope's factor between knots from ``rate_var``
     (rad²/s² per axis) times its intervals' ``Σ Δt²``."""
-    ra = accel_of(state, knots).residual
-    rm = mag_of(state, knots).residual
+    ra, rm = residuals(state, knots)
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
     floor_a = max(1e-4 * float(np.median(per_a)), 1e-300)
@@ -604,11 +603,11 @@ def _solve(plan: _Plan, held: Held | None, thermal: dict[str, Any] | None) -> _S
 
 def _samples(plan: _Plan, sol: _Solution) -> dict[str, Any]:
     """The optimum at every sample (:func:`.knots.sample_rotations`, :func:`.knots.sample_rates`,
-    :func:`.model.sample_residuals`): the rotations, rates, the accelerometer's residual in
+    :func:`.model.residuals`): the rotations, rates, the accelerometer's residual in
     units of |g| (the body's acceleration) and the field sensors' per-stretch variances."""
     data = plan.data
     rotations = sample_rotations(data, sol.state, plan.step)
-    ra, rm = sample_residuals(dataclasses.replace(sol.state, rotations=rotations), data)
+    ra, rm = residuals(dataclasses.replace(sol.state, rotations=rotations), data)
     length = max(1, round(STRETCH * plan.rate))
     return {
         "rotations": rotations,
@@ -623,8 +622,7 @@ def _samples(plan: _Plan, sol: _Solution) -> dict[str, Any]:
 def _chi_square(sol: _Solution) -> tuple[float, int]:
     """``χ²`` at the optimum (the knots' residuals, weighted) and its degrees of freedom."""
     state, knots, w = sol.state, sol.knots, sol.w
-    ra = accel_of(state, knots).residual
-    rm = mag_of(state, knots).residual
+    ra, rm = residuals(state, knots)
     rg = state_factors(state, knots).residual
     chi2 = float(
         np.sum(w.accel * np.sum(ra**2, 1))

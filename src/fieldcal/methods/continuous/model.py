@@ -63,7 +63,7 @@ __all__ = [
     "mag_columns",
     "mag_of",
     "powers",
-    "sample_residuals",
+    "residuals",
 ]
 
 Array = NDArray[np.float64]
@@ -276,19 +276,12 @@ def lever_terms(
     ``[ω]×² r = ω (ω·r) − |ω|² r`` is linear in ``Ω = ⟨ω ωᵀ⟩``, so with ``u_a = K_g⁻¹[:, a]``
     the gain's column ``(a, b)`` is ``−u_a (Ω r)_b − (r·u_a) Ω[:, b] + 2 r (Ω u_a)_b
     − (∂ℓ/∂ω̇ K_g⁻¹)[:, a] ω̇_b``; a sample's ``Ω`` is ``ω ωᵀ``."""
-    Ginv = np.linalg.inv(state.gyro_gain)
+    Ginv = np.asarray(np.linalg.inv(state.gyro_gain), dtype=np.float64)
     x = raw - state.gyro_bias
     w = x @ Ginv.T
     wd = slope @ Ginv.T
-    if second is None:
-        Om = w[:, :, None] * w[:, None, :]
-    else:  # ⟨(r − b)(r − b)ᵀ⟩ = ⟨r rᵀ⟩ − b r̄ᵀ − r̄ bᵀ + b bᵀ, mapped by K_g⁻¹
-        b = state.gyro_bias
-        xx = second - b[None, :, None] * raw[:, None, :] - raw[:, :, None] * b[None, None, :]
-        Om = Ginv @ (xx + np.outer(b, b)) @ Ginv.T
+    Om, d_lever = _lever_matrix(state, raw, wd, second, Ginv)
     r = state.lever
-    trace = np.trace(Om, axis1=1, axis2=2)
-    d_lever = hat(wd) + Om - trace[:, None, None] * np.eye(3)
     ell = (d_lever @ r[:, None])[:, :, 0]
     wr = w @ r
     d_w = (
@@ -312,6 +305,22 @@ def lever_terms(
     d_gyro[:, :, :9] = -gain.reshape(n, 3, 9)
     d_gyro[:, :, 9:] = -(d_w @ Ginv)
     return ell, d_lever, d_gyro
+
+
+def _lever_matrix(
+    state: State, raw: Array, wd: Array, second: Array | None, Ginv: Array
+) -> tuple[Array, Array]:
+    """``Ω`` (n, 3, 3, the calibrated rates' outer product or a knot's mean of it) and
+    ``∂ℓ/∂r = [ω̇]× + Ω − tr(Ω) I`` (Eq. C1b)."""
+    if second is None:
+        w = (raw - state.gyro_bias) @ Ginv.T
+        Om = w[:, :, None] * w[:, None, :]
+    else:  # ⟨(r − b)(r − b)ᵀ⟩ = ⟨r rᵀ⟩ − b r̄ᵀ − r̄ bᵀ + b bᵀ, mapped by K_g⁻¹
+        b = state.gyro_bias
+        xx = second - b[None, :, None] * raw[:, None, :] - raw[:, :, None] * b[None, None, :]
+        Om = Ginv @ (xx + np.outer(b, b)) @ Ginv.T
+    trace = np.trace(Om, axis1=1, axis2=2)
+    return Om, hat(wd) + Om - trace[:, None, None] * np.eye(3)
 
 
 def powers(d: Array, order: int) -> Array:
@@ -474,20 +483,28 @@ def mag_block(
     return Blocks(mag - pred, Jt, Jp)
 
 
-def sample_residuals(state: State, data: Data) -> tuple[Array, Array]:
-    """The accelerometer's and magnetometer's residuals (n, 3) at every sample (Eq. C1–C2,
-    ``state.rotations`` one per sample), without the Jacobians :func:`accel_of` and
-    :func:`mag_of` also form: ``ℓ = ω̇ × r + ω (ω·r) − |ω|² r``."""
-    Ginv = np.linalg.inv(state.gyro_gain)
+def residuals(state: State, data: Data) -> tuple[Array, Array]:
+    """The accelerometer's and magnetometer's residuals (n, 3) of samples or knots (Eq.
+    C1–C2), without the Jacobians :func:`accel_of` and :func:`mag_of` also form (for the
+    cost): ``ℓ = ω̇ × r + Ω r − tr(Ω) r`` with ``Ω = ω ωᵀ`` or a knot's mean."""
+    Ginv = np.asarray(np.linalg.inv(state.gyro_gain), dtype=np.float64)
     w = (data.gyro - state.gyro_bias) @ Ginv.T
     assert data.gyro_slope is not None  # Data computes it
     wd = data.gyro_slope @ Ginv.T
     r = state.lever
-    ell = np.cross(wd, r) + w * (w @ r)[:, None] - np.sum(w * w, axis=1)[:, None] * r
+    if data.gyro_second is None:
+        ell = np.cross(wd, r) + w * (w @ r)[:, None] - np.sum(w * w, axis=1)[:, None] * r
+    else:
+        _, d_lever = _lever_matrix(state, data.gyro, wd, data.gyro_second, Ginv)
+        ell = (d_lever @ r[:, None])[:, :, 0]
     accel = _thermal(state, "accel", data.accel, data.temperature)[0]
     mag = _thermal(state, "mag", data.mag, data.temperature)[0]
-    up = state.rotations @ GRAVITY + ell / STANDARD_GRAVITY
+    up = state.rotations @ GRAVITY
     field = state.rotations @ magnetic_reference(state.dip)
+    if data.mixing is not None:
+        spread = _spread(state, data)
+        up, field = _mixed(up, data.mixing, spread)[0], _mixed(field, data.mixing, spread)[0]
+    up = up + ell / STANDARD_GRAVITY
     ra: Array = accel - (up @ state.accel_gain.T + state.accel_bias)
     rm: Array = mag - (field @ state.mag_gain.T + state.mag_bias)
     return ra, rm

@@ -37,6 +37,7 @@ from .model import (
     columns,
     mag_columns,
     mag_of,
+    residuals,
 )
 from .preintegration import GyroFactors, knot_factors, thermal_factors
 
@@ -121,9 +122,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
     n = len(data.time)
     for lo, hi in _chunks(n):
         sub, part = _part(state, data, lo, hi)
-        own, rows = _own(sub, part, hi - lo)
-        ra = accel_of(own, rows).residual
-        rm = mag_of(own, rows).residual
+        ra, rm = residuals(*_own(sub, part, hi - lo))
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
         if len(sub.rotations) > 1:
