@@ -296,12 +296,12 @@ def lever_terms(
     rU = r @ Ginv  # (3,): r · u_a
     d_gyro = np.empty((n, 3, 12))
     # column 3a + b
-    gain = (
-        Ginv[None, :, :, None] * Omr[:, None, None, :]
-        + rU[None, None, :, None] * Om[:, :, None, :]
-        - 2.0 * r[None, :, None, None] * np.swapaxes(OmU, 1, 2)[:, None, :, :]
-        + B[None, :, :, None] * wd[:, None, None, :]
-    )
+    # the terms that are outer products, u_a (Ω r)_b and (∂ℓ/∂ω̇ K_g⁻¹)[:, a] ω̇_b, as one
+    # matrix product (9 × 2)(2 × 3n); the other two broadcast
+    outer = np.stack([Ginv, B]).reshape(2, 9).T @ np.stack([Omr, wd]).reshape(2, 3 * n)
+    gain = np.moveaxis(outer.reshape(3, 3, n, 3), 2, 0)
+    gain = gain + rU[None, None, :, None] * Om[:, :, None, :]
+    gain -= 2.0 * r[None, :, None, None] * np.swapaxes(OmU, 1, 2)[:, None, :, :]
     d_gyro[:, :, :9] = -gain.reshape(n, 3, 9)
     d_gyro[:, :, 9:] = -(d_w @ Ginv)
     return ell, d_lever, d_gyro
