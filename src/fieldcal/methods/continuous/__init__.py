@@ -69,6 +69,10 @@ WEAK_GYRO = 0.02
 #: Factor (standard deviation) by which the gyroscope's factors must misfit beyond the raw
 #: rates' white noise before the fit's own measure of their noise replaces it (Eq. C6).
 GYRO_MISFIT = 20.0
+#: The first round's knots are this many times sparser (:func:`_rounds`), when there are at
+#: least :data:`MIN_COARSE_KNOTS` of them.
+COARSE = 4
+MIN_COARSE_KNOTS = 200
 #: Seconds between progress lines within a round.
 PROGRESS_SECONDS = 0.5
 #: Shortest log the method takes, seconds.
@@ -468,7 +472,9 @@ def _rounds(
     """Levenberg–Marquardt from ``state`` (rotations at the knots), the knots reduced again at
     each round's gyroscope (:func:`.knots.reduce`) and the noise levels re-estimated after
     each round (Eq. C6), then a last reduction at the optimum and a settling fit: the state,
-    the knots, the last weights and levels, the iterations and convergence."""
+    the knots, the last weights and levels, the iterations and convergence. The first round
+    starts far from the optimum and takes most of the iterations: on a long log it runs on
+    knots :data:`COARSE` times sparser, the later rounds on the chosen ones."""
     data, gyro_noise = plan.data, plan.options.gyro_noise
     white = gyro_rate_variance(data.gyro, state.gyro_gain)
     if gyro_noise is None:
@@ -478,13 +484,23 @@ def _rounds(
         rate_var = max(white, float(np.mean(data.gyro**2)) * WEAK_GYRO**2)
     else:
         rate_var = float(gyro_noise) ** 2
-    knots = reduce(data, state, plan.step)
-    w, levels = _weights(state, knots, plan.length, rate_var, np.ones(3))
+    # the first round, which walks from the start, on knots COARSE times sparser
+    factor = COARSE if len(state.rotations) >= COARSE * MIN_COARSE_KNOTS else 1
+    state = dataclasses.replace(state, rotations=state.rotations[::factor])
+    knots = reduce(data, state, plan.step * factor)
+    length = max(1, round(plan.length / factor))
+    w, levels = _weights(state, knots, length, rate_var, np.ones(3))
     w.prior = prior
     total, rounds = 0, max(1, int(plan.options.rounds))
+    kept = np.ones(3)
     for r in range(rounds + 1):
+        if r and factor > 1:  # from the coarse optimum to the chosen knots
+            rotations = sample_rotations(data, state, plan.step * factor)[:: plan.step]
+            state, factor, length = dataclasses.replace(state, rotations=rotations), 1, plan.length
         if r:  # the pre-integration and the windows' turns at the gyroscope found so far
             knots = reduce(data, state, plan.step)
+            w, levels = _weights(state, knots, length, rate_var, kept)
+            w.prior = prior
         if plan.progress is not None:
             plan.progress.round(r, rounds)
         state, iterations, converged = plan.fit(state, knots, w)
@@ -495,8 +511,6 @@ def _rounds(
         if gyro_noise is None:
             white = gyro_rate_variance(data.gyro, state.gyro_gain)
             rate_var = _gyro_variance(state, knots, white, float(kept[2]))
-        w, levels = _weights(state, knots, plan.length, rate_var, kept)
-        w.prior = prior
     return state, knots, w, levels, total, converged
 
 
