@@ -179,15 +179,3 @@ def test_knots_agree_with_the_per_sample_fit(monkeypatch):
     assert np.sqrt(np.mean(z**2)) < 0.5
     ratio = knots.covariance.stds(names) / se
     assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
-
-
-def test_progress_says_the_iteration_and_round():
-    """``on_progress`` hears the knots, the round and the iteration as fractions."""
-    heard: list[str] = []
-    _fit(
-        simulate_handheld(4, seconds=20.0, rate=100.0, internal_rate=200.0),
-        on_progress=heard.append,
-    )
-    assert any("round 1/3, iteration 1/50" in line for line in heard), heard
-    assert any("knots" in line for line in heard)
-    assert any("error bars" in line for line in heard)

@@ -4,8 +4,11 @@ Orchestration only; the pieces live in
 
 - :mod:`.model` — parameters, the field sensors' residuals and analytic Jacobians (Eq. C1–C2);
 - :mod:`.preintegration` — the gyroscope's factor between epochs and its Jacobians (C3–C5);
+- :mod:`.knots` — the trajectory at knots: windows of samples reduced, the gyroscope
+  pre-integrated between knots (C1′–C3′);
 - :mod:`.initial` — the start (ellipsoids, constant-angle alignment, Wahba per epoch);
 - :mod:`.solver` — Levenberg–Marquardt on the block-banded normal equations;
+- :mod:`.rounds` — the rounds of fits and noise levels, the progress lines;
 - :mod:`.weights` — per-stretch variances (body acceleration), the gyroscope's noise (C6);
 - :mod:`.uncertainty` — the covariance with the trajectory marginalised (Schur complement):
   Cramér–Rao (C8) and the sandwich over the scores' long-run covariance (C9), reported;
@@ -19,7 +22,6 @@ Orchestration only; the pieces live in
 from __future__ import annotations
 
 import dataclasses
-import time as time_module
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -35,15 +37,16 @@ from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
 from .held_blocks import Held, held_blocks
 from .initial import start
-from .knots import knot_step, reduce, sample_rates, sample_rotations
+from .knots import knot_step, sample_rates, sample_rotations
 from .model import LEVER, Data, State, residuals
 from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
-from .solver import Prior, Weights, levenberg_marquardt, state_factors
+from .rounds import Options, Plan, Progress, run_rounds
+from .solver import Prior, Weights, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
-from .uncertainty import BATCH, LEVER_NAMES, NAMES, kept_shares, sandwich
+from .uncertainty import LEVER_NAMES, NAMES, sandwich
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
 
 __all__ = ["EPOCH_SECONDS", "MIN_SECONDS", "fit_continuous"]
@@ -63,18 +66,6 @@ PRIOR_GYRO_BIAS = 0.5
 #: Prior standard deviation of each component of the lever arm, metres (Eq. C7): a hand-held
 #: device turns within about half a metre of the point it turns about (a wrist, an elbow).
 PRIOR_LEVER = 0.5
-#: The first round's gyroscope noise, as a share of its RMS rate (unless ``gyro_noise`` is
-#: given): weak, so that the field sensors lead until the factors' noise is measured.
-WEAK_GYRO = 0.02
-#: Factor (standard deviation) by which the gyroscope's factors must misfit beyond the raw
-#: rates' white noise before the fit's own measure of their noise replaces it (Eq. C6).
-GYRO_MISFIT = 20.0
-#: The first round's knots are this many times sparser (:func:`_rounds`), when there are at
-#: least :data:`MIN_COARSE_KNOTS` of them.
-COARSE = 4
-MIN_COARSE_KNOTS = 200
-#: Seconds between progress lines within a round.
-PROGRESS_SECONDS = 0.5
 #: Shortest log the method takes, seconds.
 MIN_SECONDS = 5.0
 #: The groups of parameters whose widening (sandwich ÷ Cramér–Rao) the result records.
@@ -91,43 +82,6 @@ def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
     if not np.all(np.isfinite(a)):
         raise InputError(f"{name} has NaN or inf values; drop those rows (--drop-nan)")
     return a
-
-
-def _weights(
-    state: State, knots: Data, length: int, rate_var: float, kept: Array
-) -> tuple[Weights, dict[str, Array]]:
-    """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals at the
-    knots, divided by the share of its errors the fit keeps (``kept``,
-    :func:`.uncertainty.kept_shares`); the gyroscope's factor between knots from ``rate_var``
-    (rad²/s² per axis) times its intervals' ``Σ Δt²``."""
-    ra, rm = residuals(state, knots)
-    va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
-    vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
-    floor_a = max(1e-4 * float(np.median(per_a)), 1e-300)
-    floor_m = max(1e-4 * float(np.median(per_m)), 1e-300)
-    va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
-    vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
-    assert knots.factors is not None
-    w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * knots.factors.dt2))
-    return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
-
-
-def _gyro_variance(state: State, knots: Data, white: float, kept: float) -> float:
-    """The gyroscope's rate variance for the next round (Eq. C6): the raw rates' white noise
-    ``white`` (:func:`.weights.gyro_rate_variance` of the samples), unless its factors misfit
-    by more than :data:`GYRO_MISFIT` times that in standard deviation — their mean square
-    over the share the fit keeps (:func:`.uncertainty.kept_shares`), each over its ``Σ Δt²``,
-    is then the variance. A log without time stamps, sampled by a loop that sleeps (the
-    ICM-20948 sessions: 62 times), turns by more or less than its rate times the nominal
-    interval, and only the fit sees it. Below the threshold the white noise stands: the
-    moment estimate also takes in the field sensors' correlated errors, which the trajectory
-    passes on to the gyroscope's residuals (BROAD: 6 times), and trusting the gyroscope less
-    for them made the trajectory and the gains worse against the motion capture."""
-    f = state_factors(state, knots)
-    # per factor, the rate error it implies (rad/s)²; f.dt is √ΣΔt²
-    mean_square = float(np.mean(np.sum(f.residual**2, axis=1) / f.dt**2) / 3.0)
-    misfit = mean_square / kept
-    return misfit if misfit > GYRO_MISFIT**2 * white else white
 
 
 def _prior(state: State) -> Prior:
@@ -234,8 +188,10 @@ def fit_continuous(
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
     Maximum likelihood over the three sensors' gains and biases, the dip, the noise levels
-    and the orientation at every sample, the calibrated gyroscope driving the orientation
-    between samples (``docs/methods/continuous.md``, Eq. C1–C6).
+    and the orientation at knots a few hundredths of a second apart (:mod:`.knots`: each
+    window of samples reduced exactly, the calibrated gyroscope pre-integrated between knots),
+    the calibrated gyroscope driving the orientation between them
+    (``docs/methods/continuous.md``, Eq. C1–C6, C1′–C3′).
 
     Parameters
     ----------
@@ -273,7 +229,9 @@ def fit_continuous(
     prior : Calibration or path, optional
         The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at.
     on_progress : callable, optional
-        Hears one line per round.
+        Hears the progress: the knots, the round and the iteration as fractions, the time
+        left from the second round, the error bars' stage (a line at most every
+        :data:`.rounds.PROGRESS_SECONDS` within a round).
     temperature : (n,) array_like, optional
         The die temperature at each sample (°C). Each sensor's bias then gets the terms in
         ``T − T_ref`` (``T_ref`` the mean) that the log identifies
@@ -288,7 +246,7 @@ def fit_continuous(
         the trajectory marginalised (:func:`.uncertainty.sandwich`: the Cramér–Rao bound
         widened per parameter for time-correlated residuals; gyroscope included, correlations
         kept); ``rotations`` every :data:`EPOCH_SECONDS` (``options["epoch_step"]`` samples);
-        ``options`` records ``mode``,
+        ``options`` records ``mode``, ``knots`` (count, step in samples, seconds, the rule),
         ``trajectory``, ``motion``, ``downweighted``, ``noise``, ``error_bars`` (the batch's
         seconds, the widening per sensor) and ``identifiability``;
         ``findings`` (:class:`fieldcal.findings.MotionFindings`: undetermined, unsettled,
@@ -301,7 +259,7 @@ def fit_continuous(
         Too short a log, time not increasing, or readings that do not outline an ellipsoid.
     """
     # the linear algebra is many small products: threads only add contention
-    options = _Options(max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior)
+    options = Options(max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior)
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
         return _fit((time, accel, mag, gyro), temperature, rows, options, on_progress)
 
@@ -418,140 +376,6 @@ def _held_prior(state: State, held: Held | None) -> Prior:
 
 
 @dataclass
-class _Options:
-    """The options of :func:`fit_continuous` (checked by :func:`_check_options`)."""
-
-    max_iter: int
-    rounds: int
-    tol: float
-    gravity: float | None
-    hold: str | Sequence[str] | None
-    gyro_noise: float | None
-    gyro_sampling: str
-    prior: object
-
-
-@dataclass
-class _Plan:
-    """What the fit works on: the samples, the knots' spacing (:func:`.knots.knot_step`) and the
-    stretches and batches in knots, the options and the progress line."""
-
-    data: Data
-    step: int
-    rule: str
-    rate: float
-    options: _Options
-    progress: Progress | None
-
-    @property
-    def knot_rate(self) -> float:
-        return self.rate / self.step
-
-    @property
-    def length(self) -> int:
-        """Knots per stretch of the field sensors' variances (:data:`.weights.STRETCH`)."""
-        return max(1, round(STRETCH * self.knot_rate))
-
-    @property
-    def batch(self) -> int:
-        """Knots per batch of the long-run covariance (:data:`.uncertainty.BATCH`)."""
-        return max(2, round(BATCH * self.knot_rate))
-
-    def fit(self, state: State, knots: Data, w: Weights) -> tuple[State, int, bool]:
-        """Levenberg–Marquardt on the knots, the progress line told each iteration."""
-        hear = None if self.progress is None else self.progress.iteration
-        o = self.options
-        return levenberg_marquardt(
-            state, knots, w, max_iter=int(o.max_iter), tol=float(o.tol), on_iteration=hear
-        )
-
-
-def _rounds(
-    state: State, plan: _Plan, prior: Prior
-) -> tuple[State, Data, Weights, dict[str, Array], int, bool]:
-    """Levenberg–Marquardt from ``state`` (rotations at the knots), the knots reduced again at
-    each round's gyroscope (:func:`.knots.reduce`) and the noise levels re-estimated after
-    each round (Eq. C6), then a last reduction at the optimum and a settling fit: the state,
-    the knots, the last weights and levels, the iterations and convergence. The first round
-    starts far from the optimum and takes most of the iterations: on a long log it runs on
-    knots :data:`COARSE` times sparser, the later rounds on the chosen ones."""
-    data, gyro_noise = plan.data, plan.options.gyro_noise
-    white = gyro_rate_variance(data.gyro, state.gyro_gain)
-    if gyro_noise is None:
-        # the first round trusts the gyroscope little (WEAK_GYRO of its rates): a log whose
-        # factors are noisier than the raw rates' white noise says must not drag the
-        # trajectory away from the field sensors before its noise is measured
-        rate_var = max(white, float(np.mean(data.gyro**2)) * WEAK_GYRO**2)
-    else:
-        rate_var = float(gyro_noise) ** 2
-    # the first round, which walks from the start, on knots COARSE times sparser
-    factor = COARSE if len(state.rotations) >= COARSE * MIN_COARSE_KNOTS else 1
-    state = dataclasses.replace(state, rotations=state.rotations[::factor])
-    knots = reduce(data, state, plan.step * factor)
-    length = max(1, round(plan.length / factor))
-    w, levels = _weights(state, knots, length, rate_var, np.ones(3))
-    w.prior = prior
-    total, rounds = 0, max(1, int(plan.options.rounds))
-    kept = np.ones(3)
-    for r in range(rounds + 1):
-        if r and factor > 1:  # from the coarse optimum to the chosen knots
-            rotations = sample_rotations(data, state, plan.step * factor)[:: plan.step]
-            state, factor, length = dataclasses.replace(state, rotations=rotations), 1, plan.length
-        if r:  # the pre-integration and the windows' turns at the gyroscope found so far
-            knots = reduce(data, state, plan.step)
-            w, levels = _weights(state, knots, length, rate_var, kept)
-            w.prior = prior
-        if plan.progress is not None:
-            plan.progress.round(r, rounds)
-        state, iterations, converged = plan.fit(state, knots, w)
-        total += iterations
-        if r == rounds:  # the settling fit: the weights stand
-            break
-        kept = kept_shares(state, knots, w)
-        if gyro_noise is None:
-            white = gyro_rate_variance(data.gyro, state.gyro_gain)
-            rate_var = _gyro_variance(state, knots, white, float(kept[2]))
-    return state, knots, w, levels, total, converged
-
-
-class Progress:
-    """The fit's progress as lines for ``on_progress``: the round, the iteration (a fraction of
-    the most allowed) and, once a round has finished, an estimate of the time left."""
-
-    def __init__(self, hear: Callable[[str], None], knots: int, max_iter: int) -> None:
-        self.hear, self.knots, self.max_iter = hear, knots, max_iter
-        self.start = self.last = time_module.monotonic()
-        self.at, self.of, self.done, self.finished_rounds = 0, 1, 0, 0
-
-    def round(self, r: int, rounds: int) -> None:
-        if r:
-            self.finished_rounds += 1
-        self.at, self.of = r, rounds + 1
-
-    def iteration(self, i: int) -> None:
-        now = time_module.monotonic()
-        if i:
-            self.done += 1
-        if i and now - self.last < PROGRESS_SECONDS:
-            return
-        self.last = now
-        left = ""
-        if self.finished_rounds and self.done:
-            per = (now - self.start) / self.done
-            # the later rounds start near the optimum: as many iterations as the mean so far
-            mean = self.done / (self.finished_rounds + 1)
-            rest = max(mean - i, 1.0) + mean * (self.of - self.at - 1)
-            left = f", about {per * rest:.0f} s left"
-        self.hear(
-            f"continuous fit ({self.knots} knots): round {self.at + 1}/{self.of}, "
-            f"iteration {i + 1}/{self.max_iter}{left}"
-        )
-
-    def say(self, text: str) -> None:
-        self.hear(f"continuous fit ({self.knots} knots): {text}")
-
-
-@dataclass
 class _Solution:
     """The optimum (rotations at the knots), its knots and weights, the noise levels at the
     knots, the iterations, convergence, and the choices made on the way."""
@@ -569,9 +393,9 @@ class _Solution:
 def _prepare(
     readings: tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike],
     temperature: ArrayLike | None,
-    options: _Options,
+    options: Options,
     on_progress: Callable[[str], None] | None,
-) -> tuple[_Plan, Held | None, dict[str, Any] | None]:
+) -> tuple[Plan, Held | None, dict[str, Any] | None]:
     """The options and readings checked, the temperature's record, the held blocks and the
     knots' spacing (:func:`.knots.knot_step`)."""
     if isinstance(options.hold, str) and options.hold in HOLDS:  # the convention's old name
@@ -591,15 +415,15 @@ def _prepare(
     rate = 1.0 / float(np.median(np.diff(data.time)))
     knots = -(-len(data.time) // step)
     progress = None if on_progress is None else Progress(on_progress, knots, int(o.max_iter))
-    return _Plan(data, step, rule, rate, options, progress), held, thermal
+    return Plan(data, step, rule, rate, options, progress), held, thermal
 
 
-def _solve(plan: _Plan, held: Held | None, thermal: dict[str, Any] | None) -> _Solution:
+def _solve(plan: Plan, held: Held | None, thermal: dict[str, Any] | None) -> _Solution:
     """The start, the rounds (:func:`_rounds`), the temperature terms the log identifies
     (:func:`.thermal_terms.choose_orders`, then the rounds again) and fieldcal's gauge."""
     first, sampling, base_prior = _starting(plan.data, plan.options.gyro_sampling, held)
     first.rotations = np.ascontiguousarray(first.rotations[:: plan.step])
-    state, knots, w, levels, total, converged = _rounds(first, plan, base_prior)
+    state, knots, w, levels, total, converged = run_rounds(first, plan, base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
         allowed, o = thermal["allowed_order"], plan.options
         if plan.progress is not None:
@@ -609,13 +433,13 @@ def _solve(plan: _Plan, held: Held | None, thermal: dict[str, Any] | None) -> _S
         )
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
-            state, knots, w, levels, more, converged = _rounds(state, plan, base_prior)
+            state, knots, w, levels, more, converged = run_rounds(state, plan, base_prior)
             total += more
     state = _canonical(state)
     return _Solution(state, knots, w, levels, total, converged, sampling, thermal)
 
 
-def _samples(plan: _Plan, sol: _Solution) -> dict[str, Any]:
+def _samples(plan: Plan, sol: _Solution) -> dict[str, Any]:
     """The optimum at every sample (:func:`.knots.sample_rotations`, :func:`.knots.sample_rates`,
     :func:`.model.residuals`): the rotations, rates, the accelerometer's residual in
     units of |g| (the body's acceleration) and the field sensors' per-stretch variances."""
@@ -651,7 +475,7 @@ def _fit(
     readings: tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike],
     temperature: ArrayLike | None,
     rows: ArrayLike | None,
-    options: _Options,
+    options: Options,
     on_progress: Callable[[str], None] | None,
 ) -> Calibration:
     """:func:`fit_continuous` without the thread limit."""
@@ -668,7 +492,7 @@ def _fit(
 
 
 def _record(
-    plan: _Plan,
+    plan: Plan,
     sol: _Solution,
     cov: ParameterCovariance,
     crb: ParameterCovariance,
@@ -738,7 +562,7 @@ def _record(
 
 
 def _calibration(
-    plan: _Plan,
+    plan: Plan,
     sol: _Solution,
     cov: ParameterCovariance,
     per: dict[str, Any],
