@@ -329,10 +329,13 @@ def _sampling(state: State, data: Data, given: str) -> dict[str, Any]:
 
 
 def _gyro_source(gyro_noise: float | None, rate_var: float, white: float) -> str:
-    """Where the gyroscope's noise level came from (Eq. C6, :func:`_gyro_variance`)."""
+    """Where the gyroscope's noise level came from (Eq. C6, :func:`.rounds.gyro_variance`):
+    the misfit replaces the white noise only beyond :data:`.rounds.GYRO_MISFIT`² times it, so
+    anything within twice ``white`` (the settling fit moves the gain a little after the
+    level was taken) is the white noise."""
     if gyro_noise is not None:
         return "given (gyro_noise)"
-    if abs(rate_var - white) <= 1e-9 * white:
+    if rate_var <= 2.0 * white:
         return "raw rates' second differences"
     return "the factors' misfit (beyond the raw rates' white noise)"
 

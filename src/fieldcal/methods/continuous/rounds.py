@@ -33,7 +33,7 @@ WEAK_GYRO = 0.02
 #: Factor (standard deviation) by which the gyroscope's factors must misfit beyond the raw
 #: rates' white noise before the fit's own measure of their noise replaces it (Eq. C6).
 GYRO_MISFIT = 20.0
-#: The first round's knots are this many times sparser (:func:`_rounds`), when there are at
+#: The first round's knots are this many times sparser (:func:`run_rounds`), when there are at
 #: least :data:`MIN_COARSE_KNOTS` of them.
 COARSE = 4
 MIN_COARSE_KNOTS = 200
