@@ -215,12 +215,22 @@ def test_refuses_short_or_unordered_logs():
 
 def test_error_bars_widen_only_for_correlated_residuals():
     """The sandwich (Eq. C9) against the Cramér–Rao bound, per group, as recorded: about 1 when
-    the errors are white (30 s logs: the long-run covariance's own scatter, 0.7–1.1 seen), and
-    the accelerometer's clearly above 1 when the hand's smooth acceleration (0.05 g RMS, 17
-    times its white noise) is in its residuals (1.4–2.4 seen)."""
+    the errors are white (30 s logs: the long-run covariance's own scatter, 0.7–1.1 seen). With
+    the hand's smooth acceleration (0.05 g RMS, 17 times the white noise) in the residuals the
+    accelerometer's error bars grow with it (14–38 times seen) and still cover the truth. The
+    knots' own variances (:mod:`fieldcal.methods.continuous.knots`) already hold most of the
+    acceleration, so the recorded widening is no longer the measure (0.5–0.9 seen; the
+    per-sample fit's 1.4–2.7 with the same standard errors)."""
+    names = [f"accel.gain[{i},{i}]" for i in range(3)] + [f"accel.bias[{i}]" for i in range(3)]
     for seed in (21, 23):
         white = _fit(simulate_handwave(seed=seed, seconds=30.0, shake=0.0))
         widening = white.options["error_bars"]["widening"]
         assert all(0.6 < v < 1.35 for v in widening.values()), widening
-        shaken = _fit(simulate_handwave(seed=seed, seconds=30.0, shake=0.05))
-        assert shaken.options["error_bars"]["widening"]["accel"] > 1.3
+        log = simulate_handwave(seed=seed, seconds=30.0, shake=0.05)
+        shaken = _fit(log)
+        se = shaken.covariance.stds(names)
+        assert np.all(se > 5.0 * white.covariance.stds(names))
+        truth = log.truth.accel
+        est = np.concatenate([np.diag(shaken.accel.gain), shaken.accel.bias])
+        error = est - np.concatenate([np.diag(truth.gain), truth.bias])
+        assert np.all(np.abs(error) < 4.0 * se)

@@ -4,8 +4,11 @@ Orchestration only; the pieces live in
 
 - :mod:`.model` — parameters, the field sensors' residuals and analytic Jacobians (Eq. C1–C2);
 - :mod:`.preintegration` — the gyroscope's factor between epochs and its Jacobians (C3–C5);
+- :mod:`.knots` — the trajectory at knots: windows of samples reduced, the gyroscope
+  pre-integrated between knots (C1′–C3′);
 - :mod:`.initial` — the start (ellipsoids, constant-angle alignment, Wahba per epoch);
 - :mod:`.solver` — Levenberg–Marquardt on the block-banded normal equations;
+- :mod:`.rounds` — the rounds of fits and noise levels, the progress lines;
 - :mod:`.weights` — per-stretch variances (body acceleration), the gyroscope's noise (C6);
 - :mod:`.uncertainty` — the covariance with the trajectory marginalised (Schur complement):
   Cramér–Rao (C8) and the sandwich over the scores' long-run covariance (C9), reported;
@@ -18,8 +21,9 @@ Orchestration only; the pieces live in
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
-from functools import partial
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,14 +37,16 @@ from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
 from .held_blocks import Held, held_blocks
 from .initial import start
-from .model import LEVER, Data, State, accel_of, mag_block
+from .knots import knot_step, sample_rates, sample_rotations
+from .model import LEVER, Data, State, residuals
 from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
-from .solver import Prior, Weights, levenberg_marquardt, state_factors
+from .rounds import Options, Plan, Progress, run_rounds
+from .solver import Prior, Weights, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
-from .uncertainty import BATCH, LEVER_NAMES, NAMES, kept_shares, sandwich
+from .uncertainty import LEVER_NAMES, NAMES, sandwich
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
 
 __all__ = ["EPOCH_SECONDS", "MIN_SECONDS", "fit_continuous"]
@@ -60,12 +66,6 @@ PRIOR_GYRO_BIAS = 0.5
 #: Prior standard deviation of each component of the lever arm, metres (Eq. C7): a hand-held
 #: device turns within about half a metre of the point it turns about (a wrist, an elbow).
 PRIOR_LEVER = 0.5
-#: The first round's gyroscope noise, as a share of its RMS rate (unless ``gyro_noise`` is
-#: given): weak, so that the field sensors lead until the factors' noise is measured.
-WEAK_GYRO = 0.02
-#: Factor (standard deviation) by which the gyroscope's factors must misfit beyond the raw
-#: rates' white noise before the fit's own measure of their noise replaces it (Eq. C6).
-GYRO_MISFIT = 20.0
 #: Shortest log the method takes, seconds.
 MIN_SECONDS = 5.0
 #: The groups of parameters whose widening (sandwich ÷ Cramér–Rao) the result records.
@@ -82,44 +82,6 @@ def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
     if not np.all(np.isfinite(a)):
         raise InputError(f"{name} has NaN or inf values; drop those rows (--drop-nan)")
     return a
-
-
-def _weights(
-    state: State, data: Data, length: int, rate_var: float, kept: Array
-) -> tuple[Weights, dict[str, Array]]:
-    """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals, divided
-    by the share of its errors the fit keeps (``kept``, :func:`.uncertainty.kept_shares`);
-    the gyroscope's from ``rate_var`` (rad²/s² per axis)."""
-    ra = accel_of(state, data).residual
-    rm = mag_block(state, data.mag, data.temperature).residual
-    va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
-    vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
-    floor_a = max(1e-4 * float(np.median(per_a)), 1e-300)
-    floor_m = max(1e-4 * float(np.median(per_m)), 1e-300)
-    va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
-    vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
-    dt = np.diff(data.time)
-    w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * dt**2))
-    return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
-
-
-def _gyro_variance(state: State, data: Data, w: Weights, rate_var: float, kept: float) -> float:
-    """The gyroscope's rate variance for the next round (Eq. C6): the raw rates' white noise
-    (:func:`.weights.gyro_rate_variance`), unless its factors misfit by more than
-    :data:`GYRO_MISFIT` times that in standard deviation — their weighted mean square over the
-    share the fit keeps (:func:`.uncertainty.kept_shares`), times the variance they were
-    weighed with, is then the variance. A log without time stamps, sampled by a loop that
-    sleeps (the ICM-20948 sessions: 62 times), turns by more or less than its rate times the
-    nominal interval, and only the fit sees it. Below the threshold the white noise stands: the
-    moment estimate also takes in the field sensors' correlated errors, which the trajectory
-    passes on to the gyroscope's residuals (BROAD: 6 times), and trusting the gyroscope less
-    for them made the trajectory and the gains worse against the motion capture."""
-    f = state_factors(state, data)
-    # per interval, the rate error the factor implies (rad/s)²
-    mean_square = float(np.mean(np.sum(f.residual**2, axis=1) / f.dt**2) / 3.0)
-    white = gyro_rate_variance(data.gyro, state.gyro_gain)
-    misfit = mean_square / kept
-    return misfit if misfit > GYRO_MISFIT**2 * white else white
 
 
 def _prior(state: State) -> Prior:
@@ -226,8 +188,10 @@ def fit_continuous(
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
     Maximum likelihood over the three sensors' gains and biases, the dip, the noise levels
-    and the orientation at every sample, the calibrated gyroscope driving the orientation
-    between samples (``docs/methods/continuous.md``, Eq. C1–C6).
+    and the orientation at knots a few hundredths of a second apart (:mod:`.knots`: each
+    window of samples reduced exactly, the calibrated gyroscope pre-integrated between knots),
+    the calibrated gyroscope driving the orientation between them
+    (``docs/methods/continuous.md``, Eq. C1–C6, C1′–C3′).
 
     Parameters
     ----------
@@ -265,7 +229,9 @@ def fit_continuous(
     prior : Calibration or path, optional
         The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at.
     on_progress : callable, optional
-        Hears one line per round.
+        Hears the progress: the knots, the round and the iteration as fractions, the time
+        left from the second round, the error bars' stage (a line at most every
+        :data:`.rounds.PROGRESS_SECONDS` within a round).
     temperature : (n,) array_like, optional
         The die temperature at each sample (°C). Each sensor's bias then gets the terms in
         ``T − T_ref`` (``T_ref`` the mean) that the log identifies
@@ -280,7 +246,7 @@ def fit_continuous(
         the trajectory marginalised (:func:`.uncertainty.sandwich`: the Cramér–Rao bound
         widened per parameter for time-correlated residuals; gyroscope included, correlations
         kept); ``rotations`` every :data:`EPOCH_SECONDS` (``options["epoch_step"]`` samples);
-        ``options`` records ``mode``,
+        ``options`` records ``mode``, ``knots`` (count, step in samples, seconds, the rule),
         ``trajectory``, ``motion``, ``downweighted``, ``noise``, ``error_bars`` (the batch's
         seconds, the widening per sensor) and ``identifiability``;
         ``findings`` (:class:`fieldcal.findings.MotionFindings`: undetermined, unsettled,
@@ -293,24 +259,9 @@ def fit_continuous(
         Too short a log, time not increasing, or readings that do not outline an ellipsoid.
     """
     # the linear algebra is many small products: threads only add contention
+    options = Options(max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior)
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
-        return _fit(
-            time,
-            accel,
-            mag,
-            gyro,
-            rows,
-            max_iter,
-            rounds,
-            tol,
-            gravity,
-            hold,
-            gyro_noise,
-            on_progress,
-            temperature,
-            gyro_sampling,
-            prior,
-        )
+        return _fit((time, accel, mag, gyro), temperature, rows, options, on_progress)
 
 
 def _check_options(
@@ -378,10 +329,13 @@ def _sampling(state: State, data: Data, given: str) -> dict[str, Any]:
 
 
 def _gyro_source(gyro_noise: float | None, rate_var: float, white: float) -> str:
-    """Where the gyroscope's noise level came from (Eq. C6, :func:`_gyro_variance`)."""
+    """Where the gyroscope's noise level came from (Eq. C6, :func:`.rounds.gyro_variance`):
+    the misfit replaces the white noise only beyond :data:`.rounds.GYRO_MISFIT`² times it, so
+    anything within twice ``white`` (the settling fit moves the gain a little after the
+    level was taken) is the white noise."""
     if gyro_noise is not None:
         return "given (gyro_noise)"
-    if abs(rate_var - white) <= 1e-9 * white:
+    if rate_var <= 2.0 * white:
         return "raw rates' second differences"
     return "the factors' misfit (beyond the raw rates' white noise)"
 
@@ -424,193 +378,241 @@ def _held_prior(state: State, held: Held | None) -> Prior:
     return prior
 
 
-def _rounds(
-    state: State,
-    data: Data,
-    length: int,
-    gyro_noise: float | None,
-    rounds: int,
-    max_iter: int,
-    tol: float,
-    on_progress: Callable[[str], None] | None,
-    prior: Prior | None = None,
-) -> tuple[State, Weights, dict[str, Array], int, bool]:
-    """Levenberg–Marquardt from ``state``, the noise levels re-estimated after each round
-    (Eq. C6): the state, the last weights and levels, the iterations and convergence.
-    ``prior``: by default :func:`_prior` of ``state``."""
-    prior = _prior(state) if prior is None else prior
-    if gyro_noise is None:
-        # the first round trusts the gyroscope little (WEAK_GYRO of its rates): a log whose
-        # factors are noisier than the raw rates' white noise says must not drag the
-        # trajectory away from the field sensors before its noise is measured
-        white = gyro_rate_variance(data.gyro, state.gyro_gain)
-        rate_var = max(white, float(np.mean(data.gyro**2)) * WEAK_GYRO**2)
-    else:
-        rate_var = float(gyro_noise) ** 2
-    w, levels = _weights(state, data, length, rate_var, np.ones(3))
-    w.prior = prior
-    total = 0
-    converged = False
-    for r in range(max(1, rounds)):
-        state, iterations, converged = levenberg_marquardt(
-            state, data, w, max_iter=max_iter, tol=tol
-        )
-        total += iterations
-        kept = kept_shares(state, data, w)
-        if gyro_noise is None:
-            rate_var = _gyro_variance(state, data, w, rate_var, float(kept[2]))
-        if on_progress is not None:
-            on_progress(
-                f"continuous fit: round {r + 1}, {iterations} iterations, gyroscope noise "
-                f"{np.sqrt(rate_var):.3g} rad/s"
-            )
-        w, levels = _weights(state, data, length, rate_var, kept)
-        w.prior = prior
-    return state, w, levels, total, converged
+@dataclass
+class _Solution:
+    """The optimum (rotations at the knots), its knots and weights, the noise levels at the
+    knots, the iterations, convergence, and the choices made on the way."""
+
+    state: State
+    knots: Data
+    w: Weights
+    levels: dict[str, Array]
+    iterations: int
+    converged: bool
+    sampling: dict[str, Any]
+    thermal: dict[str, Any] | None
 
 
-def _fit(
-    time: ArrayLike,
-    accel: ArrayLike,
-    mag: ArrayLike,
-    gyro: ArrayLike,
-    rows: ArrayLike | None,
-    max_iter: int,
-    rounds: int,
-    tol: float,
-    gravity: float | None,
-    hold: str | Sequence[str] | None,
-    gyro_noise: float | None,
+def _prepare(
+    readings: tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike],
+    temperature: ArrayLike | None,
+    options: Options,
     on_progress: Callable[[str], None] | None,
-    temperature: ArrayLike | None = None,
-    gyro_sampling: str = "auto",
-    prior_cal: object = None,
-) -> Calibration:
-    """:func:`fit_continuous` without the thread limit."""
-    if isinstance(hold, str) and hold in HOLDS:  # the former spelling of the convention
-        gyro_sampling = next(k for k, v in SAMPLINGS.items() if v == hold)
-        hold = None
-    _check_options(max_iter, rounds, tol, gyro_sampling, gyro_noise)
-    held = held_blocks(hold, prior_cal)
-    data = _inputs(time, accel, mag, gyro)
+) -> tuple[Plan, Held | None, dict[str, Any] | None]:
+    """The options and readings checked, the temperature's record, the held blocks and the
+    knots' spacing (:func:`.knots.knot_step`)."""
+    if isinstance(options.hold, str) and options.hold in HOLDS:  # the convention's old name
+        options.gyro_sampling = next(k for k, v in SAMPLINGS.items() if v == options.hold)
+        options.hold = None
+    o = options
+    _check_options(o.max_iter, o.rounds, o.tol, o.gyro_sampling, o.gyro_noise)
+    held = held_blocks(o.hold, o.prior)
+    data = _inputs(*readings)
     thermal: dict[str, Any] | None = None
     if temperature is not None:
         data.temperature, thermal = temperature_record(
             _array("temperature", temperature, len(data.time), 1)
         )
-    t, a, g = data.time, data.accel, data.gyro
-    n, dt = len(t), np.diff(t)
-    index = np.arange(n) if rows is None else np.asarray(rows, dtype=int)
-    rate = 1.0 / float(np.median(dt))
-    length = max(1, round(STRETCH * rate))
-    check_motion(a, g, t)
-    batch = max(2, round(BATCH * rate))
-    first, sampling, base_prior = _starting(data, gyro_sampling, held)
-    again = partial(_rounds, data=data, length=length, gyro_noise=gyro_noise, rounds=int(rounds))
-    again = partial(again, max_iter=int(max_iter), tol=float(tol), on_progress=on_progress)
-    state, w, levels, total, converged = again(first, prior=base_prior)
+    check_motion(data.accel, data.gyro, data.time)
+    step, rule = knot_step(data.time, data.gyro)
+    rate = 1.0 / float(np.median(np.diff(data.time)))
+    knots = -(-len(data.time) // step)
+    progress = None if on_progress is None else Progress(on_progress, knots, int(o.max_iter))
+    return Plan(data, step, rule, rate, options, progress), held, thermal
+
+
+def _solve(plan: Plan, held: Held | None, thermal: dict[str, Any] | None) -> _Solution:
+    """The start, the rounds (:func:`_rounds`), the temperature terms the log identifies
+    (:func:`.thermal_terms.choose_orders`, then the rounds again) and fieldcal's gauge."""
+    first, sampling, base_prior = _starting(plan.data, plan.options.gyro_sampling, held)
+    first.rotations = np.ascontiguousarray(first.rotations[:: plan.step])
+    state, knots, w, levels, total, converged = run_rounds(first, plan, base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
-        allowed = thermal["allowed_order"]
-        state, thermal["tests"] = choose_orders(state, data, w, allowed, batch, max_iter, tol)
+        allowed, o = thermal["allowed_order"], plan.options
+        if plan.progress is not None:
+            plan.progress.say("temperature terms")
+        state, thermal["tests"] = choose_orders(
+            state, knots, w, allowed, plan.batch, int(o.max_iter), float(o.tol)
+        )
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
-            state, w, levels, more, converged = again(state, prior=base_prior)
+            state, knots, w, levels, more, converged = run_rounds(state, plan, base_prior)
             total += more
     state = _canonical(state)
-    ra = accel_of(state, data).residual
-    rm = mag_block(state, data.mag, data.temperature).residual
-    f = state_factors(state, data)
-    cov, crb, _ = sandwich(state, data, w, batch)
+    return _Solution(state, knots, w, levels, total, converged, sampling, thermal)
+
+
+def _samples(plan: Plan, sol: _Solution) -> dict[str, Any]:
+    """The optimum at every sample (:func:`.knots.sample_rotations`, :func:`.knots.sample_rates`,
+    :func:`.model.residuals`): the rotations, rates, the accelerometer's residual in
+    units of |g| (the body's acceleration) and the field sensors' per-stretch variances."""
+    data = plan.data
+    rotations = sample_rotations(data, sol.state, plan.step)
+    ra, rm = residuals(dataclasses.replace(sol.state, rotations=rotations), data)
+    length = max(1, round(STRETCH * plan.rate))
+    return {
+        "rotations": rotations,
+        "rates": sample_rates(data, sol.state),
+        "body": np.asarray(np.linalg.solve(sol.state.accel_gain, ra.T).T, dtype=np.float64),
+        "accel": stretch_variance(ra, length, 0.0)[1],
+        "mag": stretch_variance(rm, length, 0.0)[1],
+        "length": length,
+    }
+
+
+def _chi_square(sol: _Solution) -> tuple[float, int]:
+    """``χ²`` at the optimum (the knots' residuals, weighted) and its degrees of freedom."""
+    state, knots, w = sol.state, sol.knots, sol.w
+    ra, rm = residuals(state, knots)
+    rg = state_factors(state, knots).residual
+    chi2 = float(
+        np.sum(w.accel * np.sum(ra**2, 1))
+        + np.sum(w.mag * np.sum(rm**2, 1))
+        + np.sum(w.gyro * np.sum(rg**2, 1))
+    )
+    k = len(knots.time)
+    return chi2, 3 * k + 3 * k + 3 * (k - 1) - 3 * k - len(state.vector())
+
+
+def _fit(
+    readings: tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike],
+    temperature: ArrayLike | None,
+    rows: ArrayLike | None,
+    options: Options,
+    on_progress: Callable[[str], None] | None,
+) -> Calibration:
+    """:func:`fit_continuous` without the thread limit."""
+    plan, held, thermal = _prepare(readings, temperature, options, on_progress)
+    sol = _solve(plan, held, thermal)
+    if plan.progress is not None:
+        plan.progress.say("error bars (sandwich covariance)")
+    cov, crb, _ = sandwich(sol.state, sol.knots, sol.w, plan.batch)
+    per = _samples(plan, sol)
+    n = len(plan.data.time)
+    index = np.arange(n) if rows is None else np.asarray(rows, dtype=int)
+    options_out, findings = _record(plan, sol, cov, crb, per, index, held)
+    return _calibration(plan, sol, cov, per, options_out, findings)
+
+
+def _record(
+    plan: Plan,
+    sol: _Solution,
+    cov: ParameterCovariance,
+    crb: ParameterCovariance,
+    per: dict[str, Any],
+    index: NDArray[np.int_],
+    held: Held | None,
+) -> tuple[dict[str, Any], Findings]:
+    """``cal.options`` (what the fit did and measured) and the findings the verdict judges."""
+    state, data, o = sol.state, plan.data, plan.options
+    t, g = data.time, data.gyro
     widening = {
         group: float(np.sqrt(np.mean((cov.stds(names) / np.maximum(crb.stds(names), 1e-300)) ** 2)))
         for group, names in _GROUPS.items()
     }
     gains = {"accel": state.accel_gain, "mag": state.mag_gain, "gyro": state.gyro_gain}
-    # the residual in units of |g|
-    body = np.asarray(np.linalg.solve(state.accel_gain, ra.T).T, dtype=np.float64)
-    trajectory, motion = summary(t, state.rotations, f.rates, body, gravity)
+    trajectory, motion = summary(t, per["rotations"], per["rates"], per["body"], o.gravity)
     # what the motion determines is the Fisher information's to say (the Cramér–Rao bound);
     # the widening for correlated residuals is a property of the disturbances, not the motion
     check = identifiability(
         crb, gains, trajectory["turned_deg"], float(trajectory["gravity_coverage"])
     )
-    disturbed = downweighted(levels["accel"], length, t, body, index)
-    cost = 0.5 * float(
-        np.sum(w.accel * np.sum(ra**2, 1))
-        + np.sum(w.mag * np.sum(rm**2, 1))
-        + np.sum(w.gyro * np.sum(f.residual**2, 1))
-    )
-    dof = 3 * n + 3 * n + 3 * (n - 1) - 3 * n - len(state.vector())
-    rate_var = float(levels["gyro"][0])
-    gyro_source = _gyro_source(gyro_noise, rate_var, gyro_rate_variance(g, state.gyro_gain))
-    step = max(1, round(EPOCH_SECONDS * rate))
+    disturbed = downweighted(per["accel"], per["length"], t, per["body"], index)
+    rate_var = float(sol.levels["gyro"][0])
     lacking = None
-    if not converged or check.unsettled:  # blame the motion only if it lacks something
+    if not sol.converged or check.unsettled:  # blame the motion only if it lacks something
         # on the readings as logged: a fit that did not settle has no trajectory to trust
+        dt = np.diff(t)
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
-        lacking = motion_advice(a, raw_turned)
-    measured = _measured(state, data, cov, f.rates, length)
-    findings = _findings(check, disturbed, trajectory, lacking, thermal, measured)
+        lacking = motion_advice(data.accel, raw_turned)
+    measured = _measured(state, data, cov, per["rates"], per["length"])
+    findings = _findings(check, disturbed, trajectory, lacking, sol.thermal, measured)
+    step = max(1, round(EPOCH_SECONDS * plan.rate))
     options: dict[str, Any] = {
         "mode": "continuous",
         "trajectory": trajectory,
         "motion": motion,
         "downweighted": disturbed,
         "noise": {
-            "accel_quiet_std": float(np.sqrt(np.quantile(levels["accel"], 0.1))),
-            "mag_std": float(np.sqrt(np.median(levels["mag"]))),
+            "accel_quiet_std": float(np.sqrt(np.quantile(per["accel"], 0.1))),
+            "mag_std": float(np.sqrt(np.median(per["mag"]))),
             "gyro_rate_std": float(np.sqrt(rate_var)),
         },
-        "error_bars": {"batch_seconds": float(batch / rate), "widening": widening},
+        "error_bars": {"batch_seconds": float(plan.batch / plan.knot_rate), "widening": widening},
         "identifiability": {
             "relative_std": check.relative_std,
             "advice": check.advice,
             "unsettled": check.unsettled,
         },
         **measured,
-        "epoch_seconds": float(step / rate),
+        "knots": {
+            "count": len(sol.knots.time),
+            "step": int(plan.step),
+            "seconds": float(plan.step / plan.rate),
+            "rule": plan.rule,
+        },
+        "epoch_seconds": float(step / plan.rate),
         "epoch_step": int(step),
         "hold": data.hold,
-        "gyro_sampling": sampling,
+        "gyro_sampling": sol.sampling,
         "held": [] if held is None else list(held.names),
-        "max_iter": int(max_iter),
-        "rounds": int(rounds),
+        "max_iter": int(o.max_iter),
+        "rounds": int(o.rounds),
     }
-    if thermal is not None:
-        options["temperature"] = thermal
-    temps = {} if thermal is None else models(state, thermal)
+    if sol.thermal is not None:
+        options["temperature"] = sol.thermal
+    return options, findings
+
+
+def _calibration(
+    plan: Plan,
+    sol: _Solution,
+    cov: ParameterCovariance,
+    per: dict[str, Any],
+    options: dict[str, Any],
+    findings: Findings,
+) -> Calibration:
+    """The result: the three sensors, the field, the rotations every :data:`EPOCH_SECONDS`."""
+    state = sol.state
+    rate_var = float(sol.levels["gyro"][0])
+    white = gyro_rate_variance(plan.data.gyro, state.gyro_gain)
+    temps = {} if sol.thermal is None else models(state, sol.thermal)
+    chi2, dof = _chi_square(sol)
     Kg = state.gyro_gain
     return Calibration(
         accel=SensorCalibration(
             gain=state.accel_gain,
             bias=state.accel_bias,
-            noise_cov=np.quantile(levels["accel"], 0.1) * np.eye(3),
+            noise_cov=np.quantile(per["accel"], 0.1) * np.eye(3),
             noise_source="continuous residuals (quietest tenth)",
             temperature=temps.get("accel"),
         ),
         mag=SensorCalibration(
             gain=state.mag_gain,
             bias=state.mag_bias,
-            noise_cov=float(np.median(levels["mag"])) * np.eye(3),
+            noise_cov=float(np.median(per["mag"])) * np.eye(3),
             noise_source="continuous residuals",
             temperature=temps.get("mag"),
         ),
         gravity=GRAVITY,
         magnetic=magnetic_reference(state.dip),
-        rotations=state.rotations[::step],
+        rotations=per["rotations"][:: options["epoch_step"]],
         method="continuous",
-        iterations=total,
-        converged=converged,
-        message=f"{total} Levenberg-Marquardt iterations over {rounds} noise rounds",
+        iterations=sol.iterations,
+        converged=sol.converged,
+        message=(
+            f"{sol.iterations} Levenberg-Marquardt iterations over {plan.options.rounds} noise "
+            f"rounds, {len(sol.knots.time)} knots"
+        ),
         options=options,
         covariance=cov,
-        diagnostics=Diagnostics(2.0 * cost, dof, float(chdtrc(dof, 2.0 * cost)), np.zeros(0)),
+        diagnostics=Diagnostics(chi2, dof, float(chdtrc(dof, chi2)), np.zeros(0)),
         findings=findings,
         gyro=SensorCalibration(
             gain=Kg,
             bias=state.gyro_bias,
             noise_cov=rate_var * Kg @ Kg.T,
-            noise_source=gyro_source,
+            noise_source=_gyro_source(plan.options.gyro_noise, rate_var, white),
             temperature=temps.get("gyro"),
         ),
     )

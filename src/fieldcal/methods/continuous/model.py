@@ -37,7 +37,7 @@ so the accelerometer's residuals reach the gyroscope's gain and bias (:func:`acc
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,13 +53,17 @@ __all__ = [
     "TEMP_SENSORS",
     "Blocks",
     "Data",
+    "KnotFactors",
     "State",
     "accel_block",
     "accel_columns",
     "accel_of",
     "columns",
     "mag_block",
+    "mag_columns",
+    "mag_of",
     "powers",
+    "residuals",
 ]
 
 Array = NDArray[np.float64]
@@ -101,10 +105,51 @@ class Data:
     #: The raw rate's derivative at each sample (rad/s², :func:`rate_slope`); computed from
     #: the whole log when not given (a chunk of it must carry its slice).
     gyro_slope: Array | None = None
+    #: Knots only (:mod:`.knots`): each row the mean over a window of samples, ``M_k`` (n, 3, 3)
+    #: the mean turn from the knot to the window's samples (``R_i = ΔR_i R_k``), the raw
+    #: rates' mean outer product (n, 3, 3, for the lever arm's mean acceleration) and the
+    #: gyroscope pre-integrated between consecutive knots.
+    mixing: Array | None = None
+    gyro_second: Array | None = None
+    #: ``D_c`` (n, 3, 3, 12): ``∂(M_k u)/∂(K_g, b_g) = Σ_c u_c D_c`` (:mod:`.knots`).
+    mixing_jacobian: Array | None = None
+    factors: KnotFactors | None = None
 
     def __post_init__(self) -> None:
         if self.gyro_slope is None:
             self.gyro_slope = rate_slope(self.time, self.gyro)
+
+    def rows(self, lo: int, stop: int) -> Data:
+        """Rows ``lo..stop−1`` (a chunk): every per-row array sliced (covariates included,
+        whatever their name), the knots' factors ``lo..stop−2`` (those between the rows)."""
+        n = len(self.time)
+        changes: dict[str, object] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray) and value.ndim >= 1 and len(value) == n:
+                changes[f.name] = value[lo:stop]
+        if self.factors is not None:
+            changes["factors"] = self.factors.rows(lo, max(lo, stop - 1))
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+
+@dataclass
+class KnotFactors:
+    """The gyroscope pre-integrated between consecutive knots (:mod:`.knots`): at the gyroscope
+    parameters ``anchor`` the turn ``Γ̂_k`` (m, 3, 3) from knot ``k`` to ``k + 1`` (body frame,
+    ``R_{k+1} = Γ_kᵀ R_k``), its first-order change with those parameters ``Γ(θ) = Γ̂ Exp(G
+    (θ − anchor))`` (``G``: (m, 3, 12 + 3 K), gain row-major, bias, then temperature orders),
+    and ``Σ Δt²`` over its intervals (m,): its noise is ``σ_ω² Σ Δt²`` per axis."""
+
+    turn: Array
+    jacobian: Array
+    dt2: Array
+    anchor: Array
+
+    def rows(self, lo: int, stop: int) -> KnotFactors:
+        return KnotFactors(
+            self.turn[lo:stop], self.jacobian[lo:stop], self.dt2[lo:stop], self.anchor
+        )
 
 
 def rate_slope(time: Array, gyro: Array) -> Array:
@@ -220,37 +265,69 @@ def accel_columns(state: State) -> NDArray[np.intp]:
     )
 
 
-def lever_terms(state: State, raw: Array, slope: Array) -> tuple[Array, Array, Array]:
+def lever_terms(
+    state: State, raw: Array, slope: Array, second: Array | None = None
+) -> tuple[Array, Array, Array]:
     """Eq. C1a–C1b at every sample: ``ℓ`` (n, 3, m/s²), ``∂ℓ/∂r`` (n, 3, 3) and ``∂ℓ/∂(K_g,
-    b_g)`` (n, 3, 12), from the raw rates and their derivative ``slope``."""
-    Ginv = np.linalg.inv(state.gyro_gain)
-    w = (raw - state.gyro_bias) @ Ginv.T
+    b_g)`` (n, 3, 12), from the raw rates and their derivative ``slope``.
+
+    A knot's (``second``: the raw rates' mean outer product over its window, ``raw`` and
+    ``slope`` their means) is the window's mean, exactly: ``ℓ`` is linear in ``ω̇`` and
+    ``[ω]×² r = ω (ω·r) − |ω|² r`` is linear in ``Ω = ⟨ω ωᵀ⟩``, so with ``u_a = K_g⁻¹[:, a]``
+    the gain's column ``(a, b)`` is ``−u_a (Ω r)_b − (r·u_a) Ω[:, b] + 2 r (Ω u_a)_b
+    − (∂ℓ/∂ω̇ K_g⁻¹)[:, a] ω̇_b``; a sample's ``Ω`` is ``ω ωᵀ``."""
+    Ginv = np.asarray(np.linalg.inv(state.gyro_gain), dtype=np.float64)
+    x = raw - state.gyro_bias
+    w = x @ Ginv.T
     wd = slope @ Ginv.T
+    Om, d_lever = _lever_matrix(state, raw, wd, second, Ginv)
     r = state.lever
-    W = hat(w)
-    d_lever = hat(wd) + W @ W
     ell = (d_lever @ r[:, None])[:, :, 0]
     wr = w @ r
-    eye = np.eye(3)
     d_w = (
-        wr[:, None, None] * eye
+        wr[:, None, None] * np.eye(3)
         + w[:, :, None] * r[None, None, :]
         - 2.0 * r[None, :, None] * w[:, None, :]
     )
-    A = d_w @ Ginv  # ∂ℓ/∂ω · K_g⁻¹
     B = -hat(r) @ Ginv  # ∂ℓ/∂ω̇ · K_g⁻¹
     n = len(raw)
+    Omr = Om @ r  # (n, 3)
+    OmU = Om @ Ginv  # (n, 3, 3): [b, a] = (Ω u_a)_b
+    rU = r @ Ginv  # (3,): r · u_a
     d_gyro = np.empty((n, 3, 12))
-    # column 3a + b: −(A)[:, a] ω_b − (B)[:, a] ω̇_b
-    d_gyro[:, :, :9] = -(
-        A[:, :, :, None] * w[:, None, None, :] + B[None, :, :, None] * wd[:, None, None, :]
-    ).reshape(n, 3, 9)
-    d_gyro[:, :, 9:] = -A
+    # column 3a + b
+    # the terms that are outer products, u_a (Ω r)_b and (∂ℓ/∂ω̇ K_g⁻¹)[:, a] ω̇_b, as one
+    # matrix product (9 × 2)(2 × 3n); the other two broadcast
+    outer = np.stack([Ginv, B]).reshape(2, 9).T @ np.stack([Omr, wd]).reshape(2, 3 * n)
+    gain = np.moveaxis(outer.reshape(3, 3, n, 3), 2, 0)
+    gain = gain + rU[None, None, :, None] * Om[:, :, None, :]
+    gain -= 2.0 * r[None, :, None, None] * np.swapaxes(OmU, 1, 2)[:, None, :, :]
+    d_gyro[:, :, :9] = -gain.reshape(n, 3, 9)
+    d_gyro[:, :, 9:] = -(d_w @ Ginv)
     return ell, d_lever, d_gyro
 
 
+def _lever_matrix(
+    state: State, raw: Array, wd: Array, second: Array | None, Ginv: Array
+) -> tuple[Array, Array]:
+    """``Ω`` (n, 3, 3, the calibrated rates' outer product or a knot's mean of it) and
+    ``∂ℓ/∂r = [ω̇]× + Ω − tr(Ω) I`` (Eq. C1b)."""
+    if second is None:
+        w = (raw - state.gyro_bias) @ Ginv.T
+        Om = w[:, :, None] * w[:, None, :]
+    else:  # ⟨(r − b)(r − b)ᵀ⟩ = ⟨r rᵀ⟩ − b r̄ᵀ − r̄ bᵀ + b bᵀ, mapped by K_g⁻¹
+        b = state.gyro_bias
+        xx = second - b[None, :, None] * raw[:, None, :] - raw[:, :, None] * b[None, None, :]
+        Om = Ginv @ (xx + np.outer(b, b)) @ Ginv.T
+    trace = np.trace(Om, axis1=1, axis2=2)
+    return Om, hat(wd) + Om - trace[:, None, None] * np.eye(3)
+
+
 def powers(d: Array, order: int) -> Array:
-    """``d^k`` for ``k = 1..order``: (n, order)."""
+    """``d^k`` for ``k = 1..order``: (n, order). A knot's ``d`` is already its window's mean
+    powers (n, K ≥ order, :mod:`.knots`): their first ``order`` columns."""
+    if d.ndim == 2:
+        return np.asarray(d[:, :order], dtype=np.float64)
     return np.asarray(d[:, None] ** np.arange(1, order + 1)[None, :], dtype=np.float64)
 
 
@@ -282,19 +359,29 @@ def accel_block(
     temperature: Array | None = None,
     gyro: Array | None = None,
     slope: Array | None = None,
+    mixing: Array | None = None,
+    second: Array | None = None,
+    spread: tuple[Array, Array] | None = None,
 ) -> Blocks:
     """Eq. C1: residuals and Jacobians of the accelerometer at every sample; with
     ``temperature`` (``T_j − T_ref``) and terms in ``state.temps``, the bias follows it. With
     the raw rates ``gyro`` and their derivative ``slope`` the lever arm's acceleration is in
     the prediction and the Jacobian has :func:`accel_columns`' columns; without, only the
-    accelerometer's (:func:`columns`)."""
+    accelerometer's (:func:`columns`). Knots (:mod:`.knots`): ``mixing`` ``M_k`` turns the
+    knot's gravity into the window's mean, ``M_k R_k g`` (``∂/∂δ = −K M [R g]×``), and
+    ``second`` gives the lever arm's window mean (:func:`lever_terms`); ``spread`` (``D_c``
+    and ``θ − θ̂``, :func:`_mixed`) how ``M_k`` follows the gyroscope's gain and bias."""
     accel, Jc = _thermal(state, "accel", accel, temperature)
     u = state.rotations @ GRAVITY  # (n, 3) body-frame "up"
     Ka = state.accel_gain
     Jt = -Ka @ hat(u)  # d(K R g)/dδ = −K [R g]×
+    d_mix = None
+    if mixing is not None:
+        Jt = -Ka @ (mixing @ hat(u))
+        u, d_mix = _mixed(u, mixing, spread)
     lever = None
     if gyro is not None and slope is not None:
-        lever = lever_terms(state, gyro, slope)
+        lever = lever_terms(state, gyro, slope, second)
         u = u + lever[0] / STANDARD_GRAVITY
     pred = u @ Ka.T + state.accel_bias
     n = len(u)
@@ -308,29 +395,116 @@ def accel_block(
         Jp = np.concatenate([Jp, Jc], axis=2)
     if lever is not None:
         K = Ka / STANDARD_GRAVITY
-        Jp = np.concatenate([Jp, K @ lever[1], K @ lever[2]], axis=2)
+        d_gyro = K @ lever[2]
+        if d_mix is not None:
+            d_gyro = d_gyro + Ka @ d_mix
+        Jp = np.concatenate([Jp, K @ lever[1], d_gyro], axis=2)
     return Blocks(accel - pred, Jt, Jp)
 
 
+def _mixed(
+    u: Array, mixing: Array, spread: tuple[Array, Array] | None
+) -> tuple[Array, Array | None]:
+    """``M_k u`` (n, 3) for a knot's direction ``u = R_k g`` or ``R_k h`` and its Jacobian with
+    respect to the gyroscope's gain and bias (n, 3, 12): ``M`` computed at the anchor ``θ̂``
+    and moved to first order, ``M(θ) u = M̂ u + Σ_c u_c D_c (θ − θ̂)`` (:mod:`.knots`)."""
+    out = (mixing @ u[:, :, None])[:, :, 0]
+    if spread is None:
+        return out, None
+    D, moved = spread
+    J = np.einsum("nc,ncij->nij", u, D)
+    return out + J @ moved, J
+
+
+def _spread(state: State, data: Data) -> tuple[Array, Array] | None:
+    """``(D_c, θ − θ̂)`` of knots (:func:`_mixed`); ``None`` for samples."""
+    if data.mixing_jacobian is None or data.factors is None:
+        return None
+    theta = np.concatenate([state.gyro_gain.ravel(), state.gyro_bias])
+    return data.mixing_jacobian, theta - data.factors.anchor[:12]
+
+
+def mag_columns(state: State, data: Data) -> NDArray[np.intp]:
+    """The columns :func:`mag_of`'s parameter Jacobian fills: the magnetometer's
+    (:func:`columns`), then for knots the gyroscope's gain and bias (through ``M_k``)."""
+    own = columns(state, "mag")
+    return own if data.mixing_jacobian is None else np.concatenate([own, np.arange(22, 34)])
+
+
 def accel_of(state: State, data: Data) -> Blocks:
-    """:func:`accel_block` of a whole log (or chunk) with its lever arm (Eq. C1–C1b)."""
-    return accel_block(state, data.accel, data.temperature, data.gyro, data.gyro_slope)
+    """:func:`accel_block` of a whole log (or chunk, or knots) with its lever arm (Eq. C1–C1b)."""
+    return accel_block(
+        state,
+        data.accel,
+        data.temperature,
+        data.gyro,
+        data.gyro_slope,
+        data.mixing,
+        data.gyro_second,
+        _spread(state, data),
+    )
 
 
-def mag_block(state: State, mag: Array, temperature: Array | None = None) -> Blocks:
-    """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature as
-    in :func:`accel_block`)."""
+def mag_of(state: State, data: Data) -> Blocks:
+    """:func:`mag_block` of a whole log (or chunk, or knots: :func:`mag_columns`)."""
+    return mag_block(state, data.mag, data.temperature, data.mixing, _spread(state, data))
+
+
+def mag_block(
+    state: State,
+    mag: Array,
+    temperature: Array | None = None,
+    mixing: Array | None = None,
+    spread: tuple[Array, Array] | None = None,
+) -> Blocks:
+    """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature and
+    a knot's ``mixing`` as in :func:`accel_block`)."""
     mag, Jc = _thermal(state, "mag", mag, temperature)
     v = state.rotations @ magnetic_reference(state.dip)
+    dv = state.rotations @ magnetic_derivative(state.dip)
     Km = state.mag_gain
+    Jt = -Km @ hat(v)
+    d_mix = None
+    if mixing is not None:
+        Jt = -Km @ (mixing @ hat(v))
+        v, d_mix = _mixed(v, mixing, spread)
+        dv = (mixing @ dv[:, :, None])[:, :, 0]
     pred = v @ Km.T + state.mag_bias
     n = len(v)
     Jp = np.zeros((n, 3, 13))
     for r in range(3):
         Jp[:, r, 3 * r : 3 * r + 3] = v
     Jp[:, :, 9:12] = np.eye(3)
-    Jp[:, :, 12] = (state.rotations @ magnetic_derivative(state.dip)) @ Km.T
-    Jt = -Km @ hat(v)
+    Jp[:, :, 12] = dv @ Km.T
     if Jc.shape[2]:
         Jp = np.concatenate([Jp, Jc], axis=2)
+    if d_mix is not None:
+        Jp = np.concatenate([Jp, Km @ d_mix], axis=2)
     return Blocks(mag - pred, Jt, Jp)
+
+
+def residuals(state: State, data: Data) -> tuple[Array, Array]:
+    """The accelerometer's and magnetometer's residuals (n, 3) of samples or knots (Eq.
+    C1–C2), without the Jacobians :func:`accel_of` and :func:`mag_of` also form (for the
+    cost): ``ℓ = ω̇ × r + Ω r − tr(Ω) r`` with ``Ω = ω ωᵀ`` or a knot's mean."""
+    Ginv = np.asarray(np.linalg.inv(state.gyro_gain), dtype=np.float64)
+    w = (data.gyro - state.gyro_bias) @ Ginv.T
+    assert data.gyro_slope is not None  # Data computes it
+    wd = data.gyro_slope @ Ginv.T
+    r = state.lever
+    if data.gyro_second is None:
+        ell = np.cross(wd, r) + w * (w @ r)[:, None] - np.sum(w * w, axis=1)[:, None] * r
+    else:
+        _, d_lever = _lever_matrix(state, data.gyro, wd, data.gyro_second, Ginv)
+        ell = (d_lever @ r[:, None])[:, :, 0]
+    accel = _thermal(state, "accel", data.accel, data.temperature)[0]
+    mag = _thermal(state, "mag", data.mag, data.temperature)[0]
+    up = state.rotations @ GRAVITY
+    field = state.rotations @ magnetic_reference(state.dip)
+    if data.mixing is not None:
+        spread = _spread(state, data)
+        up, field = _mixed(up, data.mixing, spread)[0], _mixed(field, data.mixing, spread)[0]
+    up = up + ell / STANDARD_GRAVITY
+    ra: Array = accel - (up @ state.accel_gain.T + state.accel_bias)
+    rm: Array = mag - (field @ state.mag_gain.T + state.mag_bias)
+    return ra, rm

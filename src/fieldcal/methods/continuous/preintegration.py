@@ -32,6 +32,7 @@ __all__ = [
     "SAMPLINGS",
     "GyroFactors",
     "gyro_factors",
+    "knot_factors",
     "right_jacobian",
     "sampling_evidence",
     "thermal_factors",
@@ -174,3 +175,25 @@ def thermal_factors(
     return GyroFactors(
         f.residual, f.previous, np.concatenate([f.params, extra], axis=2), f.rates, f.dt
     )
+
+
+def knot_factors(rotations: Array, turn: Array, jacobian: Array, moved: Array) -> GyroFactors:
+    """The gyroscope's factors between knots (:mod:`.knots`), pre-integrated at the anchor's
+    gyroscope parameters and moved to the current ones to first order (Forster et al.'s bias
+    update, here for the gain and the temperature terms too)::
+
+        Γ_k(θ) = Γ̂_k Exp(ξ_k),  ξ_k = G_k (θ − θ̂)
+        e_k = Log(R_{k+1} R_kᵀ Γ_k(θ))                                              (C3')
+        ∂e/∂δ_{k+1} = I,   ∂e/∂δ_k = −Γ_kᵀ,   ∂e/∂θ = J_r(ξ_k) G_k ≈ (I − ½ [ξ_k]×) G_k
+
+    ``turn`` ``Γ̂`` (m, 3, 3), ``jacobian`` ``G`` (m, 3, p) and ``moved`` ``θ − θ̂`` (p,); as a
+    sample's factor (:func:`gyro_factors`) with ``Exp(φ)`` replaced by ``Γ``. ``rates`` and
+    ``dt`` are left to the caller (the knots' ``dt`` is ``√ΣΔt²``, the noise's scale)."""
+    xi = jacobian @ moved
+    G = turn @ exp_so3(xi)
+    A = rotations[1:] @ np.swapaxes(rotations[:-1], 1, 2)
+    e = _log_near_identity(A @ G)
+    # J_r(ξ) G, ξ the parameters' move since the anchor (a round's: thousandths of a radian)
+    params = jacobian - 0.5 * (hat(xi) @ jacobian)
+    m = len(turn)
+    return GyroFactors(-e, -np.swapaxes(G, 1, 2), params, np.zeros((m, 3)), np.ones(m))

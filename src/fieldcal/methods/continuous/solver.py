@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,8 +27,19 @@ from scipy.linalg import cholesky_banded
 from scipy.linalg.lapack import dtbtrs
 
 from ...likelihood.marquardt import Schedule, minimise
-from .model import Data, State, accel_block, accel_columns, columns, mag_block
-from .preintegration import GyroFactors, thermal_factors
+from .knots import gyro_vector
+from .model import (
+    Data,
+    KnotFactors,
+    State,
+    accel_columns,
+    accel_of,
+    columns,
+    mag_columns,
+    mag_of,
+    residuals,
+)
+from .preintegration import GyroFactors, knot_factors, thermal_factors
 
 __all__ = ["Normal", "Prior", "Weights", "cost", "levenberg_marquardt", "normal_equations", "schur"]
 
@@ -96,21 +108,12 @@ def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
     """Epochs ``lo..hi`` and the next one (the gyroscope's factors ``lo..hi−1`` need it)."""
     stop = min(hi + 1, len(data.time))
     sub = dataclasses.replace(state, rotations=state.rotations[lo:stop])
-    part = Data(
-        data.time[lo:stop],
-        data.accel[lo:stop],
-        data.mag[lo:stop],
-        data.gyro[lo:stop],
-        data.hold,
-        None if data.temperature is None else data.temperature[lo:stop],
-        None if data.gyro_slope is None else data.gyro_slope[lo:stop],
-    )
-    return sub, part
+    return sub, data.rows(lo, stop)
 
 
-def _slope(data: Data) -> Array:
-    assert data.gyro_slope is not None  # Data computes it
-    return data.gyro_slope
+def _own(sub: State, part: Data, m: int) -> tuple[State, Data]:
+    """The chunk's own ``m`` epochs (without the next one)."""
+    return dataclasses.replace(sub, rotations=sub.rotations[:m]), part.rows(0, m)
 
 
 def cost(state: State, data: Data, w: Weights) -> float:
@@ -119,11 +122,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
     n = len(data.time)
     for lo, hi in _chunks(n):
         sub, part = _part(state, data, lo, hi)
-        m = hi - lo
-        sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
-        d = None if part.temperature is None else part.temperature[:m]
-        ra = accel_block(sub_m, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]).residual
-        rm = mag_block(sub_m, part.mag[:m], d).residual
+        ra, rm = residuals(*_own(sub, part, hi - lo))
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
         if len(sub.rotations) > 1:
@@ -176,17 +175,11 @@ def _assemble(
     rhs_p: Array,
 ) -> float:
     """Add epochs ``lo..hi`` (and the factors leaving them) to the normal equations."""
-    m = hi - lo
     total = 0.0
-    own = dataclasses.replace(sub, rotations=sub.rotations[:m])
-    d = None if part.temperature is None else part.temperature[:m]
+    own, rows = _own(sub, part, hi - lo)
     for block, weight, sl in (
-        (
-            accel_block(own, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]),
-            w.accel[lo:hi],
-            accel_columns(sub),
-        ),
-        (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
+        (accel_of(own, rows), w.accel[lo:hi], accel_columns(sub)),
+        (mag_of(own, rows), w.mag[lo:hi], mag_columns(sub, rows)),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual
         WJtT = np.swapaxes(Jt * weight[:, None, None], 1, 2)
@@ -223,7 +216,10 @@ def _assemble(
 
 def state_factors(sub: State, part: Data) -> GyroFactors:
     """The gyroscope's factors of ``part`` (a chunk or the whole log) at ``sub``, the bias
-    following temperature when it has terms."""
+    following temperature when it has terms; between knots, pre-integrated
+    (:func:`.preintegration.knot_factors`)."""
+    if part.factors is not None:
+        return _knot_factors(sub, part.factors)
     return thermal_factors(
         sub.rotations,
         part.time,
@@ -234,6 +230,15 @@ def state_factors(sub: State, part: Data) -> GyroFactors:
         sub.temps.get("gyro"),
         part.temperature,
     )
+
+
+def _knot_factors(sub: State, factors: KnotFactors) -> GyroFactors:
+    """The knots' factors at ``sub``'s gyroscope (its temperature orders' columns only)."""
+    orders = (len(factors.anchor) - 12) // 3
+    width = 12 + 3 * len(sub.temps.get("gyro", ()))
+    moved = (gyro_vector(sub, orders) - factors.anchor)[:width]
+    f = knot_factors(sub.rotations, factors.turn, factors.jacobian[:, :, :width], moved)
+    return dataclasses.replace(f, dt=np.sqrt(factors.dt2))
 
 
 def schur(normal: Normal, damping: float = 0.0) -> tuple[Array, Array, Array, Array]:
@@ -279,10 +284,20 @@ class _Trajectory:
     """The continuous problem for the shared loop (:func:`fieldcal.likelihood.marquardt.
     minimise`): a point is a :class:`State`; its linearisation the banded normal equations."""
 
-    def __init__(self, data: Data, w: Weights, free: NDArray[np.bool_]) -> None:
+    def __init__(
+        self,
+        data: Data,
+        w: Weights,
+        free: NDArray[np.bool_],
+        on_iteration: Callable[[int], None] | None = None,
+    ) -> None:
         self.data, self.w, self.free = data, w, free
+        self.on_iteration, self.iterations = on_iteration, 0
 
     def linearise(self, state: State) -> tuple[State, Normal]:
+        if self.on_iteration is not None:
+            self.on_iteration(self.iterations)
+        self.iterations += 1
         return state, normal_equations(state, self.data, self.w)
 
     def level(self, linear: tuple[State, Normal]) -> float | None:
@@ -324,7 +339,13 @@ class _Fivefold(Schedule):
 
 
 def levenberg_marquardt(
-    state: State, data: Data, w: Weights, *, max_iter: int = 50, tol: float = 1e-3
+    state: State,
+    data: Data,
+    w: Weights,
+    *,
+    max_iter: int = 50,
+    tol: float = 1e-3,
+    on_iteration: Callable[[int], None] | None = None,
 ) -> tuple[State, int, bool]:
     """Minimise ``½ Σ w ‖r‖²`` from ``state``; returns the state, iterations and whether a
     step lowered the cost by less than ``tol`` (converged) before ``max_iter``.
@@ -333,8 +354,11 @@ def levenberg_marquardt(
     moves the estimate by about ``sqrt(2 tol)`` standard errors (Mahalanobis), so the default
     stops when the steps are a twentieth of the error bars or less. The shared loop
     (:func:`fieldcal.likelihood.marquardt.minimise`) with the rules of :class:`_Fivefold`;
-    parameters a prior holds (``w.prior.free``) do not move."""
+    parameters a prior holds (``w.prior.free``) do not move. ``on_iteration`` hears the
+    number of iterations done before each (for progress)."""
     size = len(state.vector())
     free = np.ones(size, dtype=bool) if w.prior is None else w.prior.free(size)
-    out = minimise(_Trajectory(data, w, free), state, math.nan, _Fivefold(tol), max_iter)
+    out = minimise(
+        _Trajectory(data, w, free, on_iteration), state, math.nan, _Fivefold(tol), max_iter
+    )
     return out.point, out.iterations, out.converged

@@ -48,7 +48,8 @@ from .model import (
     accel_columns,
     accel_of,
     columns,
-    mag_block,
+    mag_columns,
+    mag_of,
 )
 from .preintegration import GyroFactors
 from .solver import Normal, Weights, normal_equations, schur, state_factors
@@ -164,13 +165,12 @@ class _Jacobians:
 
 
 def _jacobians(state: State, data: Data) -> _Jacobians:
-    d = data.temperature
     f = state_factors(state, data)
-    cols = {s: columns(state, s) for s in ("mag", "gyro")}
+    cols = {"mag": mag_columns(state, data), "gyro": columns(state, "gyro")}
     cols["accel"] = accel_columns(state)
     return _Jacobians(
         accel_of(state, data),
-        mag_block(state, data.mag, d),
+        mag_of(state, data),
         f,
         cols,
         len(state.vector()),

@@ -13,7 +13,7 @@
   the residuals are divided by the share of its errors each sensor keeps
   (:func:`.uncertainty.kept_shares`, the REML-type correction); the gyroscope's rate
   variance is the raw rates' white noise unless its factors misfit far beyond it
-  (``fieldcal.methods.continuous._gyro_variance``).
+  (:func:`.rounds.gyro_variance`).
 - **Correlation in time** (body acceleration is smooth, a disturbance passes over seconds) is
   not a weight: the sandwich covariance (:mod:`.uncertainty`, Eq. C9) widens each parameter's
   error bar by what the correlated residuals do to it.
