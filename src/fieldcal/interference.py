@@ -20,6 +20,7 @@ a share of the Earth's field and the heading error it causes, uncorrected and af
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -28,9 +29,25 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._frozen import ArrayDataclass, frozen_array
 
-__all__ = ["InterferenceModel"]
+__all__ = [
+    "MIN_FREE",
+    "MIN_SPAN",
+    "UNITS",
+    "InterferenceModel",
+    "heading_error",
+    "missing_variation",
+]
 
 Array = NDArray[np.float64]
+
+#: Smallest span of each input that identifies its coefficients: 3 A of current (a hover
+#: against the ground idle: ArduPilot's compassmot asks for 50-75 % throttle), 0.15 of
+#: throttle.
+MIN_SPAN = {"current": 3.0, "throttle": 0.15}
+#: Smallest share of the input's variance the orientation does not explain (``1 − R²``).
+MIN_FREE = 0.05
+#: Each input's unit.
+UNITS = {"current": "A", "throttle": "0-1", "temperature": "degC"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,3 +134,37 @@ class InterferenceModel(ArrayDataclass):
             if name != "temperature":
                 out += self.coefficients[i] * self.reference[i]
         return out
+
+
+def missing_variation(name: str, u: Array, free: float) -> str:
+    """What the log lacks for input ``name`` to identify its term ("" when nothing): a span
+    under :data:`MIN_SPAN`, or ``free`` (the share of its variance the orientation does not
+    explain) under :data:`MIN_FREE`."""
+    lo, hi = float(u.min()), float(u.max())
+    unit = UNITS[name]
+    if hi - lo < MIN_SPAN[name]:
+        if name == "current" and hi < MIN_SPAN[name]:
+            return (
+                f"current never exceeded {hi:.3g} A: hover longer or add a throttle sweep "
+                f"(at least {MIN_SPAN[name]:g} A of change)"
+            )
+        return (
+            f"the {name} stayed within {lo:.3g}-{hi:.3g} {unit}: add a throttle sweep (climbs "
+            f"and descents) so that it changes by at least {MIN_SPAN[name]:g} {unit}"
+        )
+    if free < MIN_FREE:
+        return (
+            f"the {name} moved with the orientation ({100 * (1 - free):.0f} % of its variation "
+            "follows the heading and tilt): change throttle at several headings"
+        )
+    return ""
+
+
+def heading_error(A: Array, h: Array, d: Array) -> float:
+    """Worst heading error (degrees) a body-frame disturbance ``d`` (raw units) causes on a
+    level vehicle: its horizontal part against the field's horizontal part (``A`` the
+    magnetometer's gain for a field ``h`` of unit length, world frame)."""
+    delta = np.linalg.solve(A, d)  # in units of the field (|h| = 1), the body frame
+    horizontal = math.hypot(float(h[0]), float(h[1]))
+    ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
+    return math.degrees(math.asin(min(1.0, ratio)))

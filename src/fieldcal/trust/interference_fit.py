@@ -31,14 +31,19 @@ false) and ``reason`` says what to fly.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..interference import InterferenceModel
+from ..interference import (
+    MIN_FREE,
+    MIN_SPAN,
+    UNITS,
+    InterferenceModel,
+    heading_error,
+    missing_variation,
+)
 
 __all__ = [
     "BLOCKS",
@@ -62,12 +67,6 @@ Array = NDArray[np.float64]
 #: trajectory exact), so none by default.
 BLOCKS = 40
 LAG = 0
-#: Smallest span of each input that identifies its coefficients: 3 A of current (a hover
-#: against the ground idle: ArduPilot's compassmot asks for 50-75 % throttle), 0.15 of
-#: throttle.
-MIN_SPAN = {"current": 3.0, "throttle": 0.15}
-#: Smallest share of the input's variance the orientation does not explain (``1 − R²``).
-MIN_FREE = 0.05
 #: ArduPilot's guidance on compassmot's interference, as a share of the Earth's field: "less
 #: than 30% ... acceptable", "31% ~ 60% ... grey zone", "higher than 60% you should try moving
 #: your APM/PX further up and away from the sources of interference" (ArduPilot/ardupilot_wiki,
@@ -76,7 +75,6 @@ WARN_SHARE = 0.30
 FAIL_SHARE = 0.60
 #: A temperature that moves this much during the log gets its own term (a heater).
 HEATER_SPAN_K = 5.0
-_UNITS = {"current": "A", "throttle": "0-1", "temperature": "degC"}
 
 
 def quaternion_rotations(q: Array) -> Array:
@@ -141,37 +139,6 @@ def _sandwich(X: Array, E: Array, blocks: int) -> tuple[Array, Array]:
     return cov, bread
 
 
-def _missing(name: str, u: Array, free: float) -> str:
-    """What the log lacks for input ``name`` ("" when nothing)."""
-    lo, hi = float(u.min()), float(u.max())
-    unit = _UNITS[name]
-    if hi - lo < MIN_SPAN[name]:
-        if name == "current" and hi < MIN_SPAN[name]:
-            return (
-                f"current never exceeded {hi:.3g} A: hover longer or add a throttle sweep "
-                f"(at least {MIN_SPAN[name]:g} A of change)"
-            )
-        return (
-            f"the {name} stayed within {lo:.3g}-{hi:.3g} {unit}: add a throttle sweep (climbs "
-            f"and descents) so that it changes by at least {MIN_SPAN[name]:g} {unit}"
-        )
-    if free < MIN_FREE:
-        return (
-            f"the {name} moved with the orientation ({100 * (1 - free):.0f} % of its variation "
-            "follows the heading and tilt): change throttle at several headings"
-        )
-    return ""
-
-
-def _heading_error(A: Array, h: Array, d: Array) -> float:
-    """Worst heading error (degrees) a body-frame disturbance ``d`` (raw units) causes on a
-    level vehicle: its horizontal part against the field's horizontal part."""
-    delta = np.linalg.solve(A, d)  # in units of the field (|ĥ| = 1), the trajectory's body
-    horizontal = math.hypot(float(h[0]), float(h[1]))
-    ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
-    return math.degrees(math.asin(min(1.0, ratio)))
-
-
 def fit_interference(
     mag: Array,
     rotations: Array,
@@ -230,7 +197,7 @@ def fit_interference(
     free = 1.0 - np.sum((fitted - U.mean(axis=0)) ** 2, axis=0) / np.maximum(
         np.sum((U - U.mean(axis=0)) ** 2, axis=0), 1e-300
     )
-    missing = _missing(names[0], U0[:, 0], float(free[0]))
+    missing = missing_variation(names[0], U0[:, 0], float(free[0]))
     A, C = beta[:3].T, beta[4:]
     field = float(np.median(np.linalg.norm(X[:, :3] @ A.T, axis=1)))
     peak = float(U0[:, 0].max()) if names[0] != "temperature" else float(np.ptp(U0[:, 0]))
@@ -241,7 +208,7 @@ def fit_interference(
     d = C[0] * peak
     return InterferenceModel(
         inputs=tuple(names),
-        units=tuple(_UNITS[n] for n in names),
+        units=tuple(UNITS[n] for n in names),
         coefficients=C,
         reference=reference,
         std=std,
@@ -250,8 +217,8 @@ def fit_interference(
         identifiable=not missing,
         reason=missing,
         field_share=float(np.linalg.norm(d)) / field if field > 0 else 0.0,
-        heading_error_deg=_heading_error(A, h, d),
-        heading_error_corrected_deg=_heading_error(A, h, 2.0 * std[0] * peak),
+        heading_error_deg=heading_error(A, h, d),
+        heading_error_corrected_deg=heading_error(A, h, 2.0 * std[0] * peak),
         trajectory=trajectory,
     )
 

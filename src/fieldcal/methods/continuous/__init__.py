@@ -11,14 +11,17 @@ Orchestration only; the pieces live in
   Cramér–Rao (C8) and the sandwich over the scores' long-run covariance (C9), reported;
 - :mod:`.observability` — which parameters the motion leaves undetermined, and the turns to add;
 - :mod:`.trajectory` — the trajectory's summary, the motion statistics, down-weighted stretches;
-- :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies.
+- :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies;
+- :mod:`.covariates` — the magnetometer's interference term in current or throttle (Eq. C2i);
+- :mod:`.autopilot_hold` — a flight log's accelerometer and gyroscope gain held at the
+  autopilot's calibration.
 
 ``docs/methods/continuous.md`` describes the method.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from typing import Any
 
@@ -31,6 +34,7 @@ from ...calibration import Calibration, Diagnostics, ParameterCovariance, Sensor
 from ...errors import InputError
 from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
+from .covariates import Inputs, interference_inputs, interference_model
 from .held_blocks import Held, held_blocks
 from .initial import start
 from .model import LEVER, Data, State, accel_of, mag_block
@@ -91,7 +95,7 @@ def _weights(
     by the share of its errors the fit keeps (``kept``, :func:`.uncertainty.kept_shares`);
     the gyroscope's from ``rate_var`` (rad²/s² per axis)."""
     ra = accel_of(state, data).residual
-    rm = mag_block(state, data.mag, data.temperature).residual
+    rm = mag_block(state, data.mag, data.temperature, data.inputs).residual
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
     floor_a = max(1e-4 * float(np.median(per_a)), 1e-300)
@@ -222,6 +226,7 @@ def fit_continuous(
     temperature: ArrayLike | None = None,
     gyro_sampling: str = "auto",
     prior: object = None,
+    inputs: Mapping[str, ArrayLike] | None = None,
 ) -> Calibration:
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
@@ -263,7 +268,15 @@ def fit_continuous(
         (:func:`.preintegration.sampling_evidence`), ``"instant"`` when the data cannot tell;
         ``options["gyro_sampling"]`` records the choice and how it was made.
     prior : Calibration or path, optional
-        The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at.
+        The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at; or the
+        blocks held themselves (:func:`.autopilot_hold.autopilot_held`: a flight log's
+        accelerometer and gyroscope gain at the autopilot's calibration).
+    inputs : mapping, optional
+        ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1): the magnetometer's
+        interference term ``C (u − ū)`` is fitted jointly with everything else
+        (:mod:`.covariates`, Eq. C2i) and returned as ``cal.mag.interference``
+        (:class:`fieldcal.interference.InterferenceModel`; not identifiable, zeros and the
+        reason, when the input does not vary enough or follows the orientation).
     on_progress : callable, optional
         Hears one line per round.
     temperature : (n,) array_like, optional
@@ -310,6 +323,7 @@ def fit_continuous(
             temperature,
             gyro_sampling,
             prior,
+            inputs,
         )
 
 
@@ -415,6 +429,17 @@ def _starting(data: Data, given: str, held: Held | None) -> tuple[State, dict[st
     return first, sampling, _held_prior(first, held)
 
 
+def _with_inputs(state: State, data: Data, drive: Inputs | None) -> State:
+    """``state`` with zero interference coefficients and ``data`` with the centred inputs,
+    when ``drive`` varies enough to fit the term (:mod:`.covariates`)."""
+    if drive is None or drive.missing:
+        return state
+    data.inputs = drive.centred
+    out = state.copy()
+    out.interference = np.zeros((len(drive.names), 3))
+    return out
+
+
 def _held_prior(state: State, held: Held | None) -> Prior:
     """:func:`_prior` of ``state``, its held blocks fixed at their values."""
     prior = _prior(state)
@@ -485,14 +510,16 @@ def _fit(
     temperature: ArrayLike | None = None,
     gyro_sampling: str = "auto",
     prior_cal: object = None,
+    inputs: Mapping[str, ArrayLike] | None = None,
 ) -> Calibration:
     """:func:`fit_continuous` without the thread limit."""
     if isinstance(hold, str) and hold in HOLDS:  # the former spelling of the convention
         gyro_sampling = next(k for k, v in SAMPLINGS.items() if v == hold)
         hold = None
     _check_options(max_iter, rounds, tol, gyro_sampling, gyro_noise)
-    held = held_blocks(hold, prior_cal)
+    held = prior_cal if isinstance(prior_cal, Held) else held_blocks(hold, prior_cal)
     data = _inputs(time, accel, mag, gyro)
+    drive = interference_inputs(inputs, len(data.time))  # :mod:`.covariates`
     thermal: dict[str, Any] | None = None
     if temperature is not None:
         data.temperature, thermal = temperature_record(
@@ -503,9 +530,11 @@ def _fit(
     index = np.arange(n) if rows is None else np.asarray(rows, dtype=int)
     rate = 1.0 / float(np.median(dt))
     length = max(1, round(STRETCH * rate))
-    check_motion(a, g, t)
+    if held is None or not held.mask[0]:  # a held accelerometer needs no tilts
+        check_motion(a, g, t)
     batch = max(2, round(BATCH * rate))
     first, sampling, base_prior = _starting(data, gyro_sampling, held)
+    first = _with_inputs(first, data, drive)
     again = partial(_rounds, data=data, length=length, gyro_noise=gyro_noise, rounds=int(rounds))
     again = partial(again, max_iter=int(max_iter), tol=float(tol), on_progress=on_progress)
     state, w, levels, total, converged = again(first, prior=base_prior)
@@ -518,9 +547,14 @@ def _fit(
             total += more
     state = _canonical(state)
     ra = accel_of(state, data).residual
-    rm = mag_block(state, data.mag, data.temperature).residual
+    rm = mag_block(state, data.mag, data.temperature, data.inputs).residual
     f = state_factors(state, data)
     cov, crb, _ = sandwich(state, data, w, batch)
+    interference = None
+    if drive is not None:
+        interference = interference_model(
+            state.interference, drive, state.rotations, state.mag_gain, state.dip, (cov, crb)
+        )
     widening = {
         group: float(np.sqrt(np.mean((cov.stds(names) / np.maximum(crb.stds(names), 1e-300)) ** 2)))
         for group, names in _GROUPS.items()
@@ -594,6 +628,7 @@ def _fit(
             noise_cov=float(np.median(levels["mag"])) * np.eye(3),
             noise_source="continuous residuals",
             temperature=temps.get("mag"),
+            interference=interference,
         ),
         gravity=GRAVITY,
         magnetic=magnetic_reference(state.dip),

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from ...geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
 from ...geometry.rotations import exp_so3, hat
+from .covariates import interference_shift
 
 __all__ = [
     "LEVER",
@@ -101,6 +102,8 @@ class Data:
     #: The raw rate's derivative at each sample (rad/s², :func:`rate_slope`); computed from
     #: the whole log when not given (a chunk of it must carry its slice).
     gyro_slope: Array | None = None
+    #: The interference term's inputs less their means (n, k) (:mod:`.covariates`), or none.
+    inputs: Array | None = None
 
     def __post_init__(self) -> None:
         if self.gyro_slope is None:
@@ -137,6 +140,8 @@ class State:
     temps: dict[str, Array] = field(default_factory=dict)
     #: The lever arm ``r`` (metres, body frame, Eq. C1a).
     lever: Array = field(default_factory=lambda: np.zeros(3))
+    #: The magnetometer's interference coefficients (k, 3) (:mod:`.covariates`, Eq. C2i).
+    interference: Array = field(default_factory=lambda: np.zeros((0, 3)))
 
     def copy(self) -> State:
         return State(
@@ -150,6 +155,7 @@ class State:
             self.rotations.copy(),
             {s: c.copy() for s, c in self.temps.items()},
             self.lever.copy(),
+            self.interference.copy(),
         )
 
     def vector(self) -> Array:
@@ -167,6 +173,7 @@ class State:
                 self.gyro_bias,
                 self.lever,
                 *(self.temps[s].ravel() for s in TEMP_SENSORS if s in self.temps),
+                self.interference.ravel(),  # interference (:mod:`.covariates`)
             ]
         )
 
@@ -182,6 +189,7 @@ class State:
                 size = self.temps[s].size
                 temps[s] = from_vec[at : at + size].reshape(-1, 3)
                 at += size
+        interference = from_vec[at : at + self.interference.size].reshape(-1, 3)
         return State(
             Ka,
             from_vec[6:9],
@@ -193,6 +201,7 @@ class State:
             exp_so3(dR) @ self.rotations,
             temps,
             from_vec[LEVER],
+            interference,
         )
 
 
@@ -207,8 +216,10 @@ def columns(state: State, sensor: str) -> NDArray[np.intp]:
             continue
         size = state.temps[s].size
         if s == sensor:
-            return np.concatenate([base, np.arange(at, at + size)])
+            base = np.concatenate([base, np.arange(at, at + size)])
         at += size
+    if sensor == "mag" and state.interference.size:  # interference (:mod:`.covariates`)
+        base = np.concatenate([base, np.arange(at, at + state.interference.size)])
     return base
 
 
@@ -317,10 +328,14 @@ def accel_of(state: State, data: Data) -> Blocks:
     return accel_block(state, data.accel, data.temperature, data.gyro, data.gyro_slope)
 
 
-def mag_block(state: State, mag: Array, temperature: Array | None = None) -> Blocks:
+def mag_block(
+    state: State, mag: Array, temperature: Array | None = None, inputs: Array | None = None
+) -> Blocks:
     """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature as
-    in :func:`accel_block`)."""
+    in :func:`accel_block`; the interference term in ``inputs``, Eq. C2i)."""
     mag, Jc = _thermal(state, "mag", mag, temperature)
+    mag, Ji = interference_shift(state.interference, mag, inputs)
+    Jc = np.concatenate([Jc, Ji], axis=2)
     v = state.rotations @ magnetic_reference(state.dip)
     Km = state.mag_gain
     pred = v @ Km.T + state.mag_bias

@@ -104,8 +104,14 @@ def _part(state: State, data: Data, lo: int, hi: int) -> tuple[State, Data]:
         data.hold,
         None if data.temperature is None else data.temperature[lo:stop],
         None if data.gyro_slope is None else data.gyro_slope[lo:stop],
+        inputs=None if data.inputs is None else data.inputs[lo:stop],  # :mod:`.covariates`
     )
     return sub, part
+
+
+def _inputs(part: Data, m: int) -> Array | None:
+    """The chunk's interference inputs (:mod:`.covariates`), its first ``m`` epochs."""
+    return None if part.inputs is None else part.inputs[:m]
 
 
 def _slope(data: Data) -> Array:
@@ -123,7 +129,7 @@ def cost(state: State, data: Data, w: Weights) -> float:
         sub_m = dataclasses.replace(sub, rotations=sub.rotations[:m])
         d = None if part.temperature is None else part.temperature[:m]
         ra = accel_block(sub_m, part.accel[:m], d, part.gyro[:m], _slope(part)[:m]).residual
-        rm = mag_block(sub_m, part.mag[:m], d).residual
+        rm = mag_block(sub_m, part.mag[:m], d, _inputs(part, m)).residual
         total += float(np.sum(w.accel[lo:hi] * np.sum(ra**2, 1)))
         total += float(np.sum(w.mag[lo:hi] * np.sum(rm**2, 1)))
         if len(sub.rotations) > 1:
@@ -186,7 +192,7 @@ def _assemble(
             w.accel[lo:hi],
             accel_columns(sub),
         ),
-        (mag_block(own, part.mag[:m], d), w.mag[lo:hi], columns(sub, "mag")),
+        (mag_block(own, part.mag[:m], d, _inputs(part, m)), w.mag[lo:hi], columns(sub, "mag")),
     ):
         Jt, Jp, r = block.rotation, block.params, block.residual
         WJtT = np.swapaxes(Jt * weight[:, None, None], 1, 2)
