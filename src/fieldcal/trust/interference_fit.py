@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..interference import (
@@ -44,6 +43,7 @@ from ..interference import (
     heading_error,
     missing_variation,
 )
+from ..methods.continuous.autopilot import held_regression, quaternion_rotations
 
 __all__ = [
     "BLOCKS",
@@ -75,49 +75,6 @@ WARN_SHARE = 0.30
 FAIL_SHARE = 0.60
 #: A temperature that moves this much during the log gets its own term (a heater).
 HEATER_SPAN_K = 5.0
-
-
-def quaternion_rotations(q: Array) -> Array:
-    """World → body rotation matrices (n, 3, 3) from body → NED quaternions (scalar first)."""
-    w, x, y, z = np.asarray(q, dtype=float).T
-    C = np.empty((len(w), 3, 3))  # body -> world
-    C[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    C[:, 0, 1] = 2 * (x * y - w * z)
-    C[:, 0, 2] = 2 * (x * z + w * y)
-    C[:, 1, 0] = 2 * (x * y + w * z)
-    C[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    C[:, 1, 2] = 2 * (y * z - w * x)
-    C[:, 2, 0] = 2 * (x * z - w * y)
-    C[:, 2, 1] = 2 * (y * z + w * x)
-    C[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return np.transpose(C, (0, 2, 1))
-
-
-def _direction(h0: Array, x: Array) -> Array:
-    """The unit direction ``h0`` moved by ``x`` (2,) in the plane orthogonal to it."""
-    e1 = np.cross(h0, [1.0, 0.0, 0.0] if abs(h0[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(h0, e1)
-    h = h0 + x[0] * e1 + x[1] * e2
-    return np.asarray(h / np.linalg.norm(h), dtype=float)
-
-
-def _regression(mag: Array, R: Array, U: Array, h0: Array) -> tuple[Array, Array, Array]:
-    """(β (4+k, 3), the design X, ĥ): the linear parameters eliminated (variable projection),
-    the field's two angles by Levenberg–Marquardt on the projected residuals."""
-    n = len(mag)
-
-    def design(x: Array) -> Array:
-        return np.column_stack([R @ _direction(h0, x), np.ones(n), U])
-
-    def projected(x: Array) -> Array:
-        X = design(x)
-        return np.ravel(mag - X @ np.linalg.lstsq(X, mag, rcond=None)[0])
-
-    x = least_squares(projected, np.zeros(2), method="lm", xtol=1e-12, ftol=1e-14).x
-    X = design(x)
-    beta = np.asarray(np.linalg.lstsq(X, mag, rcond=None)[0], dtype=np.float64)
-    return beta, X, _direction(h0, x)
 
 
 def _sandwich(X: Array, E: Array, blocks: int) -> tuple[Array, Array]:
@@ -183,7 +140,7 @@ def fit_interference(
     world = np.einsum("nji,nj->ni", rotations, body)
     h = np.median(world, axis=0)
     h /= np.linalg.norm(h)
-    beta, X, h = _regression(mag, rotations, U, h)
+    beta, X, h = held_regression(mag, rotations, U, h)
     E = mag - X @ beta
     k = U.shape[1]
     blocks = max(2, min(BLOCKS, len(mag) // 20))

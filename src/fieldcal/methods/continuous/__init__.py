@@ -13,8 +13,8 @@ Orchestration only; the pieces live in
 - :mod:`.trajectory` — the trajectory's summary, the motion statistics, down-weighted stretches;
 - :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies;
 - :mod:`.covariates` — the magnetometer's interference term in current or throttle (Eq. C2i);
-- :mod:`.autopilot_hold` — a flight log's accelerometer and gyroscope gain held at the
-  autopilot's calibration.
+- :mod:`.autopilot` — a flight log's accelerometer and gyroscope gain held at the
+  autopilot's calibration, its attitude estimate as the start.
 
 ``docs/methods/continuous.md`` describes the method.
 """
@@ -34,6 +34,7 @@ from ...calibration import Calibration, Diagnostics, ParameterCovariance, Sensor
 from ...errors import InputError
 from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
+from .autopilot import attitude_start
 from .covariates import Inputs, interference_inputs, interference_model
 from .held_blocks import Held, held_blocks
 from .initial import start
@@ -81,7 +82,11 @@ _GROUPS = {
 def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
     a = np.asarray(value, dtype=float)
     shape = (n, width) if width > 1 else (n,)
-    if a.ndim != len(shape) or (width > 1 and a.shape[1] != 3) or (n is not None and len(a) != n):
+    if (
+        a.ndim != len(shape)
+        or (width > 1 and a.shape[1] != width)
+        or (n is not None and len(a) != n)
+    ):
         raise InputError(f"{name} must have shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InputError(f"{name} has NaN or inf values; drop those rows (--drop-nan)")
@@ -227,6 +232,7 @@ def fit_continuous(
     gyro_sampling: str = "auto",
     prior: object = None,
     inputs: Mapping[str, ArrayLike] | None = None,
+    attitude: ArrayLike | None = None,
 ) -> Calibration:
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
@@ -269,7 +275,7 @@ def fit_continuous(
         ``options["gyro_sampling"]`` records the choice and how it was made.
     prior : Calibration or path, optional
         The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at; or the
-        blocks held themselves (:func:`.autopilot_hold.autopilot_held`: a flight log's
+        blocks held themselves (:func:`.autopilot.autopilot_held`: a flight log's
         accelerometer and gyroscope gain at the autopilot's calibration).
     inputs : mapping, optional
         ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1): the magnetometer's
@@ -277,6 +283,9 @@ def fit_continuous(
         (:mod:`.covariates`, Eq. C2i) and returned as ``cal.mag.interference``
         (:class:`fieldcal.interference.InterferenceModel`; not identifiable, zeros and the
         reason, when the input does not vary enough or follows the orientation).
+    attitude : (n, 4) array_like, optional
+        The autopilot's attitude estimate (body → NED quaternions, scalar first): the start's
+        trajectory and magnetometer (:func:`.autopilot.attitude_start`); the fit moves them.
     on_progress : callable, optional
         Hears one line per round.
     temperature : (n,) array_like, optional
@@ -324,6 +333,7 @@ def fit_continuous(
             gyro_sampling,
             prior,
             inputs,
+            attitude,
         )
 
 
@@ -511,6 +521,7 @@ def _fit(
     gyro_sampling: str = "auto",
     prior_cal: object = None,
     inputs: Mapping[str, ArrayLike] | None = None,
+    attitude: ArrayLike | None = None,
 ) -> Calibration:
     """:func:`fit_continuous` without the thread limit."""
     if isinstance(hold, str) and hold in HOLDS:  # the former spelling of the convention
@@ -535,6 +546,9 @@ def _fit(
     batch = max(2, round(BATCH * rate))
     first, sampling, base_prior = _starting(data, gyro_sampling, held)
     first = _with_inputs(first, data, drive)
+    if attitude is not None:  # the autopilot's estimate as the start (:mod:`.autopilot`)
+        first = attitude_start(first, data, _array("attitude", attitude, len(t), 4))
+        base_prior = _held_prior(first, held)
     again = partial(_rounds, data=data, length=length, gyro_noise=gyro_noise, rounds=int(rounds))
     again = partial(again, max_iter=int(max_iter), tol=float(tol), on_progress=on_progress)
     state, w, levels, total, converged = again(first, prior=base_prior)
@@ -584,6 +598,8 @@ def _fit(
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
         lacking = motion_advice(a, raw_turned)
     measured = _measured(state, data, cov, f.rates, length)
+    if held is not None and held.mask[22]:  # a gain held in rad/s: its unit is not in question
+        measured["gyro_units_ratio"] = None
     findings = _findings(check, disturbed, trajectory, lacking, thermal, measured)
     options: dict[str, Any] = {
         "mode": "continuous",
