@@ -8,7 +8,7 @@ attitude estimate is the truth turned by a wandering error (0.5Â° by default, 0Â
 "perfect attitude" row). The term is fitted jointly with the gains, biases and the orientation
 trajectory (:func:`fieldcal.methods.continuous.fit_continuous` with ``inputs``, the
 accelerometer and the gyroscope's gain held at the autopilot's calibration as for a flight
-log: :func:`~fieldcal.methods.continuous.autopilot.autopilot_held`), and for comparison
+log: :func:`~fieldcal.methods.continuous.autopilot_aid.autopilot_held`), and for comparison
 with the attitude estimate held (:func:`fieldcal.trust.interference_fit.fit_interference`);
 each is compared with the truth:
 
@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import pin_blas_threads, stamp, write_section
 
 from fieldcal.methods.continuous import fit_continuous
-from fieldcal.methods.continuous.autopilot import autopilot_held
+from fieldcal.methods.continuous.autopilot_aid import autopilot_held
 from fieldcal.simulation.multirotor import simulate_flight
 from fieldcal.trust.interference_fit import fit_interference, quaternion_rotations
 

@@ -43,7 +43,7 @@ from ..interference import (
     heading_error,
     missing_variation,
 )
-from ..methods.continuous.autopilot import held_regression, quaternion_rotations
+from ..methods.continuous.autopilot_aid import held_regression, quaternion_rotations
 
 __all__ = [
     "BLOCKS",

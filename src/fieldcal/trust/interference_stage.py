@@ -14,7 +14,7 @@ import numpy as np
 from ..calibration import Calibration
 from ..interference import InterferenceModel
 from ..logs import Log
-from ..methods.continuous.autopilot import autopilot_held
+from ..methods.continuous.autopilot_aid import autopilot_held
 from .interference_fit import fit_interference, held_trajectory
 
 __all__ = ["flight_options", "with_interference"]

@@ -13,7 +13,7 @@ Orchestration only; the pieces live in
 - :mod:`.trajectory` — the trajectory's summary, the motion statistics, down-weighted stretches;
 - :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies;
 - :mod:`.covariates` — the magnetometer's interference term in current or throttle (Eq. C2i);
-- :mod:`.autopilot` — a flight log's accelerometer and gyroscope gain held at the
+- :mod:`.autopilot_aid` — a flight log's accelerometer and gyroscope gain held at the
   autopilot's calibration, its attitude estimate as the start.
 
 ``docs/methods/continuous.md`` describes the method.
@@ -34,7 +34,8 @@ from ...calibration import Calibration, Diagnostics, ParameterCovariance, Sensor
 from ...errors import InputError
 from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
-from .autopilot import attitude_start
+from ...interference import InterferenceModel
+from .autopilot_aid import attitude_start
 from .covariates import Inputs, interference_inputs, interference_model
 from .held_blocks import Held, held_blocks
 from .initial import start
@@ -275,7 +276,7 @@ def fit_continuous(
         ``options["gyro_sampling"]`` records the choice and how it was made.
     prior : Calibration or path, optional
         The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at; or the
-        blocks held themselves (:func:`.autopilot.autopilot_held`: a flight log's
+        blocks held themselves (:func:`.autopilot_aid.autopilot_held`: a flight log's
         accelerometer and gyroscope gain at the autopilot's calibration).
     inputs : mapping, optional
         ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1): the magnetometer's
@@ -285,7 +286,7 @@ def fit_continuous(
         reason, when the input does not vary enough or follows the orientation).
     attitude : (n, 4) array_like, optional
         The autopilot's attitude estimate (body → NED quaternions, scalar first): the start's
-        trajectory and magnetometer (:func:`.autopilot.attitude_start`); the fit moves them.
+        trajectory and magnetometer (:func:`.autopilot_aid.attitude_start`); the fit moves them.
     on_progress : callable, optional
         Hears one line per round.
     temperature : (n,) array_like, optional
@@ -411,32 +412,57 @@ def _gyro_source(gyro_noise: float | None, rate_var: float, white: float) -> str
 
 
 def _measured(
-    state: State, data: Data, cov: ParameterCovariance, rates: Array, length: int
+    state: State, data: Data, cov: ParameterCovariance, rates: Array, length: int, held: Held | None
 ) -> dict[str, Any]:
     """The options the verdict's continuous rules read (:mod:`.motion_checks`) and the lever
-    arm with its standard error."""
+    arm with its standard error (a gyroscope's gain held in rad/s: its unit not in question)."""
     t, g = data.time, data.gyro
+    units = None if held is not None and held.mask[22] else gyro_units_ratio(t, data.mag, g)
     return {
         "lever_arm": {
             "metres": [float(x) for x in state.lever],
             "std_m": [float(x) for x in cov.stds(list(LEVER_NAMES))],
         },
         "gyro_check": gyro_check(state.gyro_gain, cov),
-        "gyro_units_ratio": gyro_units_ratio(t, data.mag, g),
+        "gyro_units_ratio": units,
         "field_check": field_check(state, data, length),
         "turn_check": turn_check(t, rates, g),
     }
 
 
-def _starting(data: Data, given: str, held: Held | None) -> tuple[State, dict[str, Any], Prior]:
-    """The start (:func:`.initial.start`), the sampling convention (:func:`_sampling`, set on
-    ``data``), the held blocks put in place and the prior that holds them."""
+def _starting(
+    data: Data,
+    given: str,
+    held: Held | None,
+    drive: Inputs | None = None,
+    attitude: ArrayLike | None = None,
+) -> tuple[State, dict[str, Any], Prior]:
+    """The motion checked (:func:`.observability.check_motion`, unless the accelerometer is
+    held: it needs no tilts), the start (:func:`.initial.start`; the autopilot's ``attitude``
+    when given, :func:`.autopilot_aid.attitude_start`), the sampling convention
+    (:func:`_sampling`, set on ``data``), the interference term's inputs, the held blocks put in
+    place and the prior that holds them."""
+    if held is None or not held.mask[0]:
+        check_motion(data.accel, data.gyro, data.time)
     first = start(data)
     sampling = _sampling(first, data, given)
     data.hold = SAMPLINGS[sampling["used"]]
     if held is not None:
         first = held.apply(first)
+    first = _with_inputs(first, data, drive)
+    if attitude is not None:
+        first = attitude_start(first, data, _array("attitude", attitude, len(data.time), 4))
     return first, sampling, _held_prior(first, held)
+
+
+def _interference(
+    state: State, drive: Inputs | None, cov: ParameterCovariance, crb: ParameterCovariance
+) -> InterferenceModel | None:
+    """The fitted term (:func:`.covariates.interference_model`), ``None`` without inputs."""
+    if drive is None:
+        return None
+    rotations, gain, dip = state.rotations, state.mag_gain, state.dip
+    return interference_model(state.interference, drive, rotations, gain, dip, (cov, crb))
 
 
 def _with_inputs(state: State, data: Data, drive: Inputs | None) -> State:
@@ -541,14 +567,8 @@ def _fit(
     index = np.arange(n) if rows is None else np.asarray(rows, dtype=int)
     rate = 1.0 / float(np.median(dt))
     length = max(1, round(STRETCH * rate))
-    if held is None or not held.mask[0]:  # a held accelerometer needs no tilts
-        check_motion(a, g, t)
     batch = max(2, round(BATCH * rate))
-    first, sampling, base_prior = _starting(data, gyro_sampling, held)
-    first = _with_inputs(first, data, drive)
-    if attitude is not None:  # the autopilot's estimate as the start (:mod:`.autopilot`)
-        first = attitude_start(first, data, _array("attitude", attitude, len(t), 4))
-        base_prior = _held_prior(first, held)
+    first, sampling, base_prior = _starting(data, gyro_sampling, held, drive, attitude)
     again = partial(_rounds, data=data, length=length, gyro_noise=gyro_noise, rounds=int(rounds))
     again = partial(again, max_iter=int(max_iter), tol=float(tol), on_progress=on_progress)
     state, w, levels, total, converged = again(first, prior=base_prior)
@@ -564,11 +584,6 @@ def _fit(
     rm = mag_block(state, data.mag, data.temperature, data.inputs).residual
     f = state_factors(state, data)
     cov, crb, _ = sandwich(state, data, w, batch)
-    interference = None
-    if drive is not None:
-        interference = interference_model(
-            state.interference, drive, state.rotations, state.mag_gain, state.dip, (cov, crb)
-        )
     widening = {
         group: float(np.sqrt(np.mean((cov.stds(names) / np.maximum(crb.stds(names), 1e-300)) ** 2)))
         for group, names in _GROUPS.items()
@@ -597,9 +612,7 @@ def _fit(
         # on the readings as logged: a fit that did not settle has no trajectory to trust
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
         lacking = motion_advice(a, raw_turned)
-    measured = _measured(state, data, cov, f.rates, length)
-    if held is not None and held.mask[22]:  # a gain held in rad/s: its unit is not in question
-        measured["gyro_units_ratio"] = None
+    measured = _measured(state, data, cov, f.rates, length, held)
     findings = _findings(check, disturbed, trajectory, lacking, thermal, measured)
     options: dict[str, Any] = {
         "mode": "continuous",
@@ -644,7 +657,7 @@ def _fit(
             noise_cov=float(np.median(levels["mag"])) * np.eye(3),
             noise_source="continuous residuals",
             temperature=temps.get("mag"),
-            interference=interference,
+            interference=_interference(state, drive, cov, crb),
         ),
         gravity=GRAVITY,
         magnetic=magnetic_reference(state.dip),

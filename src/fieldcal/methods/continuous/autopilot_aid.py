@@ -118,12 +118,15 @@ def attitude_start(state: State, data: Data, attitude: Array) -> State:
     k = len(state.interference)
     U = np.zeros((len(ned), 0)) if data.inputs is None or k == 0 else data.inputs[:, :k]
     beta, _, h = held_regression(data.mag, ned, U, h0)
+    gain = beta[:3].T
+    if np.linalg.det(gain) < 0:  # (−K, −ĥ) reads the same: the unmirrored one (fieldcal's gauge)
+        gain, h = -gain, -h
     declination = float(np.arctan2(h[1], h[0]))
     c, s = np.cos(declination), np.sin(declination)
     turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # fit's world → NED
     out = state.copy()
     out.rotations = ned @ turn
-    out.mag_gain = beta[:3].T
+    out.mag_gain = gain
     out.mag_bias = beta[3]
     out.dip = float(np.arctan2(h[2], np.hypot(h[0], h[1])))
     if U.shape[1]:
