@@ -22,19 +22,29 @@ __all__ = ["flight_options", "with_interference"]
 
 def flight_options(log: Log, hold: object) -> tuple[dict[str, Any], list[str]]:
     """The continuous fit's keywords a log adds, and the notes: its current or throttle
-    (``inputs``: the interference term fitted jointly); for a flight log whose IMU the
-    autopilot calibrated (its accelerometer in the body frame), unless blocks are held
-    (``hold``), the accelerometer and the gyroscope's gain held at that calibration
-    (``prior``) and the autopilot's attitude (``attitude``) as the start."""
+    (``inputs``: the interference term fitted jointly); for a flight log, unless blocks are
+    held (``hold``), the accelerometer and the gyroscope's gain held (``prior``): at the
+    autopilot's calibration when it calibrated them (the accelerometer in the body frame; its
+    attitude estimate, ``attitude``, then starts the fit), else at nominal values (a raw
+    sensor-frame stream: gain ``g₀ I``, bias zero, the gyroscope's gain the identity)."""
     options: dict[str, Any] = {}
     notes: list[str] = []
     if log.inputs:
         options["inputs"] = log.inputs
     frame = log.metadata.get("accel_frame", "")
-    if not frame.startswith("body") or hold:
+    if not frame or hold:
         return options, notes
     kind = log.metadata.get("log_format", "")
     autopilot = "PX4" if "ULog" in kind else "ArduPilot" if "DataFlash" in kind else "the autopilot"
+    if not frame.startswith("body"):  # raw, in the sensor's frame: nominal values
+        options["prior"] = autopilot_held(autopilot, source="nominal values (raw readings)")
+        notes.append(
+            "flight log: the raw accelerometer held at nominal values (gain 9.80665 m/s² per g, "
+            "bias 0) and the gyroscope's gain at the identity (a flight's attitudes do not "
+            "determine them): its offsets pass into the tilt and the compass; log the calibrated "
+            "IMU (sensor_combined) for the autopilot's calibration to be used"
+        )
+        return options, notes
     options["prior"] = autopilot_held(autopilot)
     notes.append(
         f"flight log: the accelerometer (gain and bias) and the gyroscope's gain held at "

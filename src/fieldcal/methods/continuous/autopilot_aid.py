@@ -46,10 +46,13 @@ Array = NDArray[np.float64]
 AUTOPILOT_BLOCKS = ("accel.gain", "accel.bias", "gyro.gain")
 
 
-def autopilot_held(autopilot: str, gravity: float = STANDARD_GRAVITY) -> Held:
+def autopilot_held(
+    autopilot: str, gravity: float = STANDARD_GRAVITY, *, source: str | None = None
+) -> Held:
     """The blocks of :data:`AUTOPILOT_BLOCKS` at the calibration of ``autopilot`` (its name,
-    for the record): the accelerometer's gain ``gravity·I`` (its readings' units per unit of
-    gravity), bias zero, the gyroscope's gain the identity (rad/s)."""
+    for the record; ``source`` says otherwise, e.g. nominal values for raw readings): the
+    accelerometer's gain ``gravity·I`` (its readings' units per unit of gravity), bias zero,
+    the gyroscope's gain the identity (rad/s)."""
     mask = np.zeros(LEVER.stop, dtype=bool)
     mask[SLICES["accel"]] = True
     mask[22:31] = True  # the gyroscope's gain (:data:`.model.SLICES`)
@@ -58,7 +61,8 @@ def autopilot_held(autopilot: str, gravity: float = STANDARD_GRAVITY) -> Held:
         "accel.bias": np.zeros(3),
         "gyro.gain": np.eye(3).ravel(),
     }
-    return Held(AUTOPILOT_BLOCKS, values, mask, f"{autopilot}'s calibration (the log's values)")
+    where = source or f"{autopilot}'s calibration (the log's values)"
+    return Held(AUTOPILOT_BLOCKS, values, mask, where)
 
 
 def quaternion_rotations(q: Array) -> Array:
