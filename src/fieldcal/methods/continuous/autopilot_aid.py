@@ -110,10 +110,24 @@ def held_regression(mag: Array, R: Array, U: Array, h0: Array) -> tuple[Array, A
     return beta, X, _direction(h0, x)
 
 
+#: Degrees the attitude must turn away from its start (95th percentile) for the start to
+#: regress the magnetometer on it; less (a few seconds of hover), the readings are taken as the
+#: autopilot calibrated them: gain ``|m| I``, bias zero, the field's direction their mean.
+MIN_TURN_DEG = 45.0
+
+
+def _turned(ned: Array) -> float:
+    """The 95th percentile of each attitude's angle from the first (radians)."""
+    relative = ned @ ned[0].T
+    cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.percentile(np.arccos(cos), 95))
+
+
 def attitude_start(state: State, data: Data, attitude: Array) -> State:
     """``state`` (the ellipsoids' start) with the trajectory of the autopilot's ``attitude``
     (n, 4: body → NED, scalar first) and the magnetometer's parameters regressed on it (the
-    module docstring)."""
+    module docstring), or as the autopilot calibrated them when it barely turned
+    (:data:`MIN_TURN_DEG`)."""
     ned = quaternion_rotations(attitude)
     body = np.linalg.solve(state.mag_gain, (data.mag - state.mag_bias).T).T
     world = np.einsum("nji,nj->ni", ned, body)
@@ -121,8 +135,14 @@ def attitude_start(state: State, data: Data, attitude: Array) -> State:
     h0 /= max(float(np.linalg.norm(h0)), 1e-300)
     k = len(state.interference)
     U = np.zeros((len(ned), 0)) if data.inputs is None or k == 0 else data.inputs[:, :k]
-    beta, _, h = held_regression(data.mag, ned, U, h0)
-    gain = beta[:3].T
+    if _turned(ned) < np.radians(MIN_TURN_DEG):  # a regression on it would be noise
+        strength = float(np.median(np.linalg.norm(data.mag, axis=1)))
+        world = np.einsum("nji,nj->ni", ned, data.mag)
+        h = np.median(world, axis=0) / max(float(np.linalg.norm(np.median(world, axis=0))), 1e-300)
+        gain, beta = strength * np.eye(3), np.zeros((4 + k, 3))
+    else:
+        beta, _, h = held_regression(data.mag, ned, U, h0)
+        gain = beta[:3].T
     if np.linalg.det(gain) < 0:  # (−K, −ĥ) reads the same: the unmirrored one (fieldcal's gauge)
         gain, h = -gain, -h
     declination = float(np.arctan2(h[1], h[0]))
