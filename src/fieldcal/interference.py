@@ -36,6 +36,7 @@ __all__ = [
     "InterferenceModel",
     "heading_error",
     "missing_variation",
+    "summarised",
 ]
 
 Array = NDArray[np.float64]
@@ -168,3 +169,42 @@ def heading_error(A: Array, h: Array, d: Array) -> float:
     horizontal = math.hypot(float(h[0]), float(h[1]))
     ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
     return math.degrees(math.asin(min(1.0, ratio)))
+
+
+def summarised(
+    names: list[str],
+    values: Array,
+    fitted: tuple[Array, Array, Array],
+    field: tuple[Array, Array, float],
+    free: float,
+    trajectory: str,
+) -> InterferenceModel:
+    """The :class:`InterferenceModel` of a fit: ``names`` the inputs, ``values`` their values as
+    logged (n, k; the reference their means), ``fitted`` the coefficients, standard errors and
+    bounds (k, 3 each), ``field`` the magnetometer's gain, the field's unit direction (world) and
+    its strength in raw units, ``free`` the share of the first input's variance the orientation
+    leaves free. Not identifiable (:func:`missing_variation`): zeros and the reason. The figures
+    at the highest input (the temperature's span for a heater alone)."""
+    C, std, crb = (np.asarray(x, dtype=float).reshape(-1, 3) for x in fitted)
+    gain, h, strength = field
+    missing = missing_variation(names[0], values[:, 0], free)
+    if missing:
+        C, std, crb = np.zeros_like(C), np.zeros_like(C), np.zeros_like(C)
+    u = values[:, 0]
+    peak = float(np.ptp(u)) if names[0] == "temperature" else float(u.max())
+    d = C[0] * peak
+    return InterferenceModel(
+        inputs=tuple(names),
+        units=tuple(UNITS[n] for n in names),
+        coefficients=C,
+        reference=values.mean(axis=0),
+        std=std,
+        crb=crb,
+        span=np.column_stack([values.min(axis=0), values.max(axis=0)]),
+        identifiable=not missing,
+        reason=missing,
+        field_share=float(np.linalg.norm(d)) / strength if strength > 0 else 0.0,
+        heading_error_deg=heading_error(gain, h, d),
+        heading_error_corrected_deg=heading_error(gain, h, 2.0 * std[0] * peak),
+        trajectory=trajectory,
+    )

@@ -68,5 +68,6 @@ def test_real_ulog_holds_the_autopilots_calibration_and_judges_the_compass(tmp_p
     cal = doc.get("calibration", doc)
     assert cal["accel"]["bias"] == pytest.approx([0.0, 0.0, 0.0])
     codes = {r["code"] for r in cal["verdict"]["reasons"]}
-    assert "continuous_undetermined" in codes and "gyro_units" not in codes
+    assert "continuous_undetermined" in codes
+    assert "gyro_units" not in codes and "implausible_gain" not in codes
     assert "interference_not_identifiable" in codes

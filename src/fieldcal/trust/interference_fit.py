@@ -35,14 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..interference import (
-    MIN_FREE,
-    MIN_SPAN,
-    UNITS,
-    InterferenceModel,
-    heading_error,
-    missing_variation,
-)
+from ..interference import MIN_FREE, MIN_SPAN, InterferenceModel, summarised
 from ..methods.continuous.autopilot_aid import held_regression, quaternion_rotations
 
 __all__ = [
@@ -142,7 +135,6 @@ def fit_interference(
     h /= np.linalg.norm(h)
     beta, X, h = held_regression(mag, rotations, U, h)
     E = mag - X @ beta
-    k = U.shape[1]
     blocks = max(2, min(BLOCKS, len(mag) // 20))
     cov, bread = _sandwich(X, E, blocks)
     std = np.sqrt(np.stack([np.diag(c)[4:] for c in cov], axis=1))  # (k, 3)
@@ -154,30 +146,9 @@ def fit_interference(
     free = 1.0 - np.sum((fitted - U.mean(axis=0)) ** 2, axis=0) / np.maximum(
         np.sum((U - U.mean(axis=0)) ** 2, axis=0), 1e-300
     )
-    missing = missing_variation(names[0], U0[:, 0], float(free[0]))
     A, C = beta[:3].T, beta[4:]
     field = float(np.median(np.linalg.norm(X[:, :3] @ A.T, axis=1)))
-    peak = float(U0[:, 0].max()) if names[0] != "temperature" else float(np.ptp(U0[:, 0]))
-    if missing:
-        C = np.zeros((k, 3))
-        std = np.zeros((k, 3))
-        crb = np.zeros((k, 3))
-    d = C[0] * peak
-    return InterferenceModel(
-        inputs=tuple(names),
-        units=tuple(UNITS[n] for n in names),
-        coefficients=C,
-        reference=reference,
-        std=std,
-        crb=crb,
-        span=np.column_stack([U0.min(axis=0), U0.max(axis=0)]),
-        identifiable=not missing,
-        reason=missing,
-        field_share=float(np.linalg.norm(d)) / field if field > 0 else 0.0,
-        heading_error_deg=heading_error(A, h, d),
-        heading_error_corrected_deg=heading_error(A, h, 2.0 * std[0] * peak),
-        trajectory=trajectory,
-    )
+    return summarised(names, U0, (C, std, crb), (A, h, field), float(free[0]), trajectory)
 
 
 def held_trajectory(

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from ...calibration import ParameterCovariance
 from ...errors import InputError
 from ...geometry.frames import magnetic_reference
-from ...interference import UNITS, InterferenceModel, heading_error, missing_variation
+from ...interference import InterferenceModel, missing_variation, summarised
 
 __all__ = [
     "JOINT",
@@ -124,24 +124,5 @@ def interference_model(
     U = inputs.centred
     fitted = Z @ np.linalg.lstsq(Z, U, rcond=None)[0]
     free = 1.0 - float(np.sum(fitted[:, 0] ** 2)) / max(float(np.sum(U[:, 0] ** 2)), 1e-300)
-    missing = missing_variation(inputs.names[0], inputs.values[:, 0], free)
-    if missing:
-        C, std, bound = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
-    peak = float(inputs.values[:, 0].max())
-    field = float(np.linalg.norm(mag_gain @ h))
-    d = C[0] * peak
-    return InterferenceModel(
-        inputs=tuple(inputs.names),
-        units=tuple(UNITS[n] for n in inputs.names),
-        coefficients=C,
-        reference=inputs.reference,
-        std=std,
-        crb=bound,
-        span=np.column_stack([inputs.values.min(axis=0), inputs.values.max(axis=0)]),
-        identifiable=not missing,
-        reason=missing,
-        field_share=float(np.linalg.norm(d)) / field if field > 0 else 0.0,
-        heading_error_deg=heading_error(mag_gain, h, d),
-        heading_error_corrected_deg=heading_error(mag_gain, h, 2.0 * std[0] * peak),
-        trajectory=JOINT,
-    )
+    field = (mag_gain, h, float(np.linalg.norm(mag_gain @ h)))
+    return summarised(inputs.names, inputs.values, (C, std, bound), field, free, JOINT)
