@@ -165,6 +165,8 @@ def fold_axes(
         triples.append([f"{sensor}.bias[{r}]" for r in range(3)])
         order = 0 if fitted.temperature is None else fitted.temperature.order
         triples += [[f"{sensor}.temp[{k},{r}]" for r in range(3)] for k in range(1, order + 1)]
+        inputs = 0 if fitted.interference is None else len(fitted.interference.inputs)
+        triples += [[f"{sensor}.interference[{i},{r}]" for r in range(3)] for i in range(inputs)]
         for triple in triples:
             if all(t in names for t in triple):
                 idx = [names.index(t) for t in triple]
