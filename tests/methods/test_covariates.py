@@ -96,3 +96,25 @@ def test_inputs_are_checked():
     with pytest.raises(Exception, match="not current or throttle"):
         interference_inputs({"rpm": np.ones(4)}, 4)
     assert interference_inputs({}, 4) is None
+
+
+def test_a_magnetometer_axis_map_folds_the_term_back_to_the_raw_axes():
+    """Fitted on mapped axes (``--mag-axes``), folded back: the coefficients are the raw
+    frame's truth, their covariance entries follow."""
+    from fieldcal.pipeline import fold_axes
+
+    flight = simulate_flight(2, seconds=40.0, rate=25.0, interference_ut=30.0)
+    P = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    mapped = fit_continuous(
+        flight.time,
+        flight.accel,
+        flight.mag @ P.T,
+        flight.gyro,
+        inputs={"current": flight.current},
+        prior=autopilot_held("the simulated autopilot", 9.81),
+        attitude=flight.attitude,
+    )
+    model = fold_axes(mapped, P, "yx-z").mag.interference
+    assert np.all(np.abs(model.coefficients[0] - flight.coefficients) < 4 * model.std[0])
+    cov = fold_axes(mapped, P, "yx-z").covariance
+    assert cov.stds(interference_labels(1)) == pytest.approx(model.std[0], rel=1e-9)
