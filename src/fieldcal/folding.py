@@ -43,6 +43,14 @@ def fold_axes(
         else dataclasses.replace(
             fitted.temperature, coefficients=fitted.temperature.coefficients @ P, std=None
         ),
+        interference=None  # c_i → Pᵀ c_i, as the temperature terms
+        if fitted.interference is None
+        else dataclasses.replace(
+            fitted.interference,
+            coefficients=fitted.interference.coefficients @ P,
+            std=fitted.interference.std @ np.abs(P),
+            crb=fitted.interference.crb @ np.abs(P),
+        ),
     )
     covariance = cal.covariance
     if covariance is not None:
@@ -53,6 +61,8 @@ def fold_axes(
         triples.append([f"{sensor}.bias[{r}]" for r in range(3)])
         order = 0 if fitted.temperature is None else fitted.temperature.order
         triples += [[f"{sensor}.temp[{k},{r}]" for r in range(3)] for k in range(1, order + 1)]
+        inputs = 0 if fitted.interference is None else len(fitted.interference.inputs)
+        triples += [[f"{sensor}.interference[{i},{r}]" for r in range(3)] for i in range(inputs)]
         for triple in triples:
             if all(t in names for t in triple):
                 idx = [names.index(t) for t in triple]

@@ -20,6 +20,7 @@ a share of the Earth's field and the heading error it causes, uncorrected and af
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -28,9 +29,26 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._frozen import ArrayDataclass, frozen_array
 
-__all__ = ["InterferenceModel"]
+__all__ = [
+    "MIN_FREE",
+    "MIN_SPAN",
+    "UNITS",
+    "InterferenceModel",
+    "heading_error",
+    "missing_variation",
+    "summarised",
+]
 
 Array = NDArray[np.float64]
+
+#: Smallest span of each input that identifies its coefficients: 3 A of current (a hover
+#: against the ground idle: ArduPilot's compassmot asks for 50-75 % throttle), 0.15 of
+#: throttle.
+MIN_SPAN = {"current": 3.0, "throttle": 0.15}
+#: Smallest share of the input's variance the orientation does not explain (``1 − R²``).
+MIN_FREE = 0.05
+#: Each input's unit.
+UNITS = {"current": "A", "throttle": "0-1", "temperature": "degC"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,3 +135,76 @@ class InterferenceModel(ArrayDataclass):
             if name != "temperature":
                 out += self.coefficients[i] * self.reference[i]
         return out
+
+
+def missing_variation(name: str, u: Array, free: float) -> str:
+    """What the log lacks for input ``name`` to identify its term ("" when nothing): a span
+    under :data:`MIN_SPAN`, or ``free`` (the share of its variance the orientation does not
+    explain) under :data:`MIN_FREE`."""
+    lo, hi = float(u.min()), float(u.max())
+    unit = UNITS[name]
+    if hi - lo < MIN_SPAN[name]:
+        if name == "current" and hi < MIN_SPAN[name]:
+            return (
+                f"current never exceeded {hi:.3g} A: hover longer or add a throttle sweep "
+                f"(at least {MIN_SPAN[name]:g} A of change)"
+            )
+        return (
+            f"the {name} stayed within {lo:.3g}-{hi:.3g} {unit}: add a throttle sweep (climbs "
+            f"and descents) so that it changes by at least {MIN_SPAN[name]:g} {unit}"
+        )
+    if free < MIN_FREE:
+        return (
+            f"the {name} moved with the orientation ({100 * (1 - free):.0f} % of its variation "
+            "follows the heading and tilt): change throttle at several headings"
+        )
+    return ""
+
+
+def heading_error(A: Array, h: Array, d: Array) -> float:
+    """Worst heading error (degrees) a body-frame disturbance ``d`` (raw units) causes on a
+    level vehicle: its horizontal part against the field's horizontal part (``A`` the
+    magnetometer's gain for a field ``h`` of unit length, world frame)."""
+    delta = np.linalg.solve(A, d)  # in units of the field (|h| = 1), the body frame
+    horizontal = math.hypot(float(h[0]), float(h[1]))
+    ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
+    return math.degrees(math.asin(min(1.0, ratio)))
+
+
+def summarised(
+    names: list[str],
+    values: Array,
+    fitted: tuple[Array, Array, Array],
+    field: tuple[Array, Array, float],
+    free: float,
+    trajectory: str,
+) -> InterferenceModel:
+    """The :class:`InterferenceModel` of a fit: ``names`` the inputs, ``values`` their values as
+    logged (n, k; the reference their means), ``fitted`` the coefficients, standard errors and
+    bounds (k, 3 each), ``field`` the magnetometer's gain, the field's unit direction (world) and
+    its strength in raw units, ``free`` the share of the first input's variance the orientation
+    leaves free. Not identifiable (:func:`missing_variation`): zeros and the reason. The figures
+    at the highest input (the temperature's span for a heater alone)."""
+    C, std, crb = (np.asarray(x, dtype=float).reshape(-1, 3) for x in fitted)
+    gain, h, strength = field
+    missing = missing_variation(names[0], values[:, 0], free)
+    if missing:
+        C, std, crb = np.zeros_like(C), np.zeros_like(C), np.zeros_like(C)
+    u = values[:, 0]
+    peak = float(np.ptp(u)) if names[0] == "temperature" else float(u.max())
+    d = C[0] * peak
+    return InterferenceModel(
+        inputs=tuple(names),
+        units=tuple(UNITS[n] for n in names),
+        coefficients=C,
+        reference=values.mean(axis=0),
+        std=std,
+        crb=crb,
+        span=np.column_stack([values.min(axis=0), values.max(axis=0)]),
+        identifiable=not missing,
+        reason=missing,
+        field_share=float(np.linalg.norm(d)) / strength if strength > 0 else 0.0,
+        heading_error_deg=heading_error(gain, h, d),
+        heading_error_corrected_deg=heading_error(gain, h, 2.0 * std[0] * peak),
+        trajectory=trajectory,
+    )

@@ -45,7 +45,7 @@ from .settings import (
     settings_of,
 )
 from .trust.continuous_motion import trust_continuous
-from .trust.interference_stage import with_interference
+from .trust.interference_stage import flight_options, with_interference
 from .trust.targets import Targets
 from .trust.verdict import with_late_checks
 
@@ -545,6 +545,8 @@ def _run_continuous(
     mag = log.mag if job.axes is None else log.mag @ job.axes.T
     if on_progress is not None:
         on_progress(f"calibrating from continuous motion ({log.n} samples)")
+    flight, more = flight_options(log, fit.hold)  # the interference jointly; a flight log's
+    notes += more  # autopilot (:func:`fieldcal.trust.interference_stage.flight_options`)
     try:
         cal = estimator("continuous").fit(
             time,
@@ -558,7 +560,8 @@ def _run_continuous(
             gyro_sampling=fit.gyro_sampling,
             gyro_noise=fit.gyro_noise,
             hold=fit.hold,
-            prior=fit.prior,
+            prior=flight.pop("prior", fit.prior),
+            **flight,
         )
     except (np.linalg.LinAlgError, FloatingPointError, OverflowError):
         raise InputError(

@@ -206,6 +206,8 @@ def flight_table(log: FlightLog, *, mag: int | None = None, imu: int | None = No
     metadata["mag_unit"] = chosen["mag"].unit if "mag" in chosen else ""
     if "mag" in chosen:
         metadata["mag_instance"] = str(chosen["mag"].instance)
+    if "accel" in chosen:  # "body ...": calibrated by the autopilot (the fit may hold it)
+        metadata["accel_frame"] = chosen["accel"].frame
     return Table(log.path, names, columns, notes=notes, metadata=metadata)
 
 

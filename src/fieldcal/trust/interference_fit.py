@@ -31,12 +31,11 @@ false) and ``reason`` says what to fly.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
-from ..interference import InterferenceModel
+from ..interference import MIN_FREE, MIN_SPAN, InterferenceModel, summarised
+from ..methods.continuous.autopilot_aid import held_regression, quaternion_rotations
 
 __all__ = [
     "BLOCKS",
@@ -60,12 +59,6 @@ Array = NDArray[np.float64]
 #: trajectory exact), so none by default.
 BLOCKS = 40
 LAG = 0
-#: Smallest span of each input that identifies its coefficients: 3 A of current (a hover
-#: against the ground idle: ArduPilot's compassmot asks for 50-75 % throttle), 0.15 of
-#: throttle.
-MIN_SPAN = {"current": 3.0, "throttle": 0.15}
-#: Smallest share of the input's variance the orientation does not explain (``1 − R²``).
-MIN_FREE = 0.05
 #: ArduPilot's guidance on compassmot's interference, as a share of the Earth's field: "less
 #: than 30% ... acceptable", "31% ~ 60% ... grey zone", "higher than 60% you should try moving
 #: your APM/PX further up and away from the sources of interference" (ArduPilot/ardupilot_wiki,
@@ -74,52 +67,6 @@ WARN_SHARE = 0.30
 FAIL_SHARE = 0.60
 #: A temperature that moves this much during the log gets its own term (a heater).
 HEATER_SPAN_K = 5.0
-_UNITS = {"current": "A", "throttle": "0-1", "temperature": "degC"}
-
-
-def quaternion_rotations(q: Array) -> Array:
-    """World → body rotation matrices (n, 3, 3) from body → NED quaternions (scalar first)."""
-    w, x, y, z = np.asarray(q, dtype=float).T
-    C = np.empty((len(w), 3, 3))  # body -> world
-    C[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    C[:, 0, 1] = 2 * (x * y - w * z)
-    C[:, 0, 2] = 2 * (x * z + w * y)
-    C[:, 1, 0] = 2 * (x * y + w * z)
-    C[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    C[:, 1, 2] = 2 * (y * z - w * x)
-    C[:, 2, 0] = 2 * (x * z - w * y)
-    C[:, 2, 1] = 2 * (y * z + w * x)
-    C[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return np.transpose(C, (0, 2, 1))
-
-
-def _direction(h0: Array, x: Array) -> Array:
-    """The unit direction ``h0`` moved by ``x`` (2,) in the plane orthogonal to it."""
-    e1 = np.cross(h0, [1.0, 0.0, 0.0] if abs(h0[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(h0, e1)
-    h = h0 + x[0] * e1 + x[1] * e2
-    return np.asarray(h / np.linalg.norm(h), dtype=float)
-
-
-def _regression(mag: Array, R: Array, U: Array, h0: Array) -> tuple[Array, Array, Array]:
-    """(β (4+k, 3), the design X, ĥ): the linear parameters eliminated (variable projection),
-    the field's two angles by Levenberg–Marquardt on the projected residuals."""
-    n = len(mag)
-
-    def design(x: Array) -> Array:
-        return np.column_stack([R @ _direction(h0, x), np.ones(n), U])
-
-    def projected(x: Array) -> Array:
-        X = design(x)
-        return np.ravel(mag - X @ np.linalg.lstsq(X, mag, rcond=None)[0])
-
-    from scipy.optimize import least_squares  # here: its import costs a calibration 0.2 s
-
-    x = least_squares(projected, np.zeros(2), method="lm", xtol=1e-12, ftol=1e-14).x
-    X = design(x)
-    beta = np.asarray(np.linalg.lstsq(X, mag, rcond=None)[0], dtype=np.float64)
-    return beta, X, _direction(h0, x)
 
 
 def _sandwich(X: Array, E: Array, blocks: int) -> tuple[Array, Array]:
@@ -139,37 +86,6 @@ def _sandwich(X: Array, E: Array, blocks: int) -> tuple[Array, Array]:
             meat += (1.0 - step / (lag + 1.0)) * (across + across.T)
         cov[r] = bread @ meat @ bread * blocks / (blocks - 1)
     return cov, bread
-
-
-def _missing(name: str, u: Array, free: float) -> str:
-    """What the log lacks for input ``name`` ("" when nothing)."""
-    lo, hi = float(u.min()), float(u.max())
-    unit = _UNITS[name]
-    if hi - lo < MIN_SPAN[name]:
-        if name == "current" and hi < MIN_SPAN[name]:
-            return (
-                f"current never exceeded {hi:.3g} A: hover longer or add a throttle sweep "
-                f"(at least {MIN_SPAN[name]:g} A of change)"
-            )
-        return (
-            f"the {name} stayed within {lo:.3g}-{hi:.3g} {unit}: add a throttle sweep (climbs "
-            f"and descents) so that it changes by at least {MIN_SPAN[name]:g} {unit}"
-        )
-    if free < MIN_FREE:
-        return (
-            f"the {name} moved with the orientation ({100 * (1 - free):.0f} % of its variation "
-            "follows the heading and tilt): change throttle at several headings"
-        )
-    return ""
-
-
-def _heading_error(A: Array, h: Array, d: Array) -> float:
-    """Worst heading error (degrees) a body-frame disturbance ``d`` (raw units) causes on a
-    level vehicle: its horizontal part against the field's horizontal part."""
-    delta = np.linalg.solve(A, d)  # in units of the field (|ĥ| = 1), the trajectory's body
-    horizontal = math.hypot(float(h[0]), float(h[1]))
-    ratio = math.hypot(float(delta[0]), float(delta[1])) / max(horizontal, 1e-12)
-    return math.degrees(math.asin(min(1.0, ratio)))
 
 
 def fit_interference(
@@ -216,9 +132,8 @@ def fit_interference(
     world = np.einsum("nji,nj->ni", rotations, body)
     h = np.median(world, axis=0)
     h /= np.linalg.norm(h)
-    beta, X, h = _regression(mag, rotations, U, h)
+    beta, X, h = held_regression(mag, rotations, U, h)
     E = mag - X @ beta
-    k = U.shape[1]
     blocks = max(2, min(BLOCKS, len(mag) // 20))
     cov, bread = _sandwich(X, E, blocks)
     std = np.sqrt(np.stack([np.diag(c)[4:] for c in cov], axis=1))  # (k, 3)
@@ -230,30 +145,9 @@ def fit_interference(
     free = 1.0 - np.sum((fitted - U.mean(axis=0)) ** 2, axis=0) / np.maximum(
         np.sum((U - U.mean(axis=0)) ** 2, axis=0), 1e-300
     )
-    missing = _missing(names[0], U0[:, 0], float(free[0]))
     A, C = beta[:3].T, beta[4:]
     field = float(np.median(np.linalg.norm(X[:, :3] @ A.T, axis=1)))
-    peak = float(U0[:, 0].max()) if names[0] != "temperature" else float(np.ptp(U0[:, 0]))
-    if missing:
-        C = np.zeros((k, 3))
-        std = np.zeros((k, 3))
-        crb = np.zeros((k, 3))
-    d = C[0] * peak
-    return InterferenceModel(
-        inputs=tuple(names),
-        units=tuple(_UNITS[n] for n in names),
-        coefficients=C,
-        reference=reference,
-        std=std,
-        crb=crb,
-        span=np.column_stack([U0.min(axis=0), U0.max(axis=0)]),
-        identifiable=not missing,
-        reason=missing,
-        field_share=float(np.linalg.norm(d)) / field if field > 0 else 0.0,
-        heading_error_deg=_heading_error(A, h, d),
-        heading_error_corrected_deg=_heading_error(A, h, 2.0 * std[0] * peak),
-        trajectory=trajectory,
-    )
+    return summarised(names, U0, (C, std, crb), (A, h, field), float(free[0]), trajectory)
 
 
 def held_trajectory(

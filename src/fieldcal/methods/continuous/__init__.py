@@ -14,7 +14,10 @@ Orchestration only; the pieces live in
   Cramér–Rao (C8) and the sandwich over the scores' long-run covariance (C9), reported;
 - :mod:`.observability` — which parameters the motion leaves undetermined, and the turns to add;
 - :mod:`.trajectory` — the trajectory's summary, the motion statistics, down-weighted stretches;
-- :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies.
+- :mod:`.thermal_terms` — the biases' temperature terms: the orders the log identifies;
+- :mod:`.covariates` — the magnetometer's interference term in current or throttle (Eq. C2i);
+- :mod:`.autopilot_aid` — a flight log's accelerometer and gyroscope gain held at the
+  autopilot's calibration, its attitude estimate as the start.
 
 ``docs/methods/continuous.md`` describes the method.
 """
@@ -22,7 +25,7 @@ Orchestration only; the pieces live in
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,6 +38,9 @@ from ...calibration import Calibration, Diagnostics, ParameterCovariance, Sensor
 from ...errors import InputError
 from ...findings import Findings, MotionFindings, TemperatureSpan
 from ...geometry.frames import GRAVITY, HALF_TURN_DOWN, magnetic_reference, twin_flip
+from ...interference import InterferenceModel
+from .autopilot_aid import attitude_start
+from .covariates import Inputs, interference_inputs, interference_model
 from .held_blocks import Held, held_blocks
 from .initial import start
 from .knots import knot_step, sample_rates, sample_rotations
@@ -77,7 +83,11 @@ _GROUPS = {
 def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
     a = np.asarray(value, dtype=float)
     shape = (n, width) if width > 1 else (n,)
-    if a.ndim != len(shape) or (width > 1 and a.shape[1] != 3) or (n is not None and len(a) != n):
+    if (
+        a.ndim != len(shape)
+        or (width > 1 and a.shape[1] != width)
+        or (n is not None and len(a) != n)
+    ):
         raise InputError(f"{name} must have shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InputError(f"{name} has NaN or inf values; drop those rows (--drop-nan)")
@@ -184,6 +194,8 @@ def fit_continuous(
     temperature: ArrayLike | None = None,
     gyro_sampling: str = "auto",
     prior: object = None,
+    inputs: Mapping[str, ArrayLike] | None = None,
+    attitude: ArrayLike | None = None,
 ) -> Calibration:
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
@@ -218,16 +230,27 @@ def fit_continuous(
         ``gyro_sampling="instant"``/``"mean"``).
     gyro_noise : float, optional
         The gyroscope's white noise per sample (rad/s, one axis), when known; by default
-        measured from the raw rates' second differences (which real rate jitter at the sample
-        rate inflates: give it then, e.g. from a datasheet or a still log).
-    gyro_sampling : {"auto", "instant", "mean"}
+        measured from the raw rates' fourth differences in the log's quietest stretches (white
+        jitter of the true rate at every sample is indistinguishable: give it then, e.g. from a
+        datasheet or a still log).
         Whether a gyroscope reading is the rate at its instant (the interval between samples
         takes the mean of its two ends) or the mean rate over the interval that follows it.
         ``"auto"``: detected from how the magnetometer's direction turns
         (:func:`.preintegration.sampling_evidence`), ``"instant"`` when the data cannot tell;
         ``options["gyro_sampling"]`` records the choice and how it was made.
     prior : Calibration or path, optional
-        The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at.
+        The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at; or the
+        blocks held themselves (:func:`.autopilot_aid.autopilot_held`: a flight log's
+        accelerometer and gyroscope gain at the autopilot's calibration).
+    inputs : mapping, optional
+        ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1): the magnetometer's
+        interference term ``C (u − ū)`` is fitted jointly with everything else
+        (:mod:`.covariates`, Eq. C2i) and returned as ``cal.mag.interference``
+        (:class:`fieldcal.interference.InterferenceModel`; not identifiable, zeros and the
+        reason, when the input does not vary enough or follows the orientation).
+    attitude : (n, 4) array_like, optional
+        The autopilot's attitude estimate (body → NED quaternions, scalar first): the start's
+        trajectory and magnetometer (:func:`.autopilot_aid.attitude_start`); the fit moves them.
     on_progress : callable, optional
         Hears the progress: the knots, the round and the iteration as fractions, the time
         left from the second round, the error bars' stage (a line at most every
@@ -259,7 +282,9 @@ def fit_continuous(
         Too short a log, time not increasing, or readings that do not outline an ellipsoid.
     """
     # the linear algebra is many small products: threads only add contention
-    options = Options(max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior)
+    options = Options(
+        max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior, inputs, attitude
+    )
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
         return _fit((time, accel, mag, gyro), temperature, rows, options, on_progress)
 
@@ -336,37 +361,77 @@ def _gyro_source(gyro_noise: float | None, rate_var: float, white: float) -> str
     if gyro_noise is not None:
         return "given (gyro_noise)"
     if rate_var <= 2.0 * white:
-        return "raw rates' second differences"
+        return "raw rates' quiet fourth differences"
     return "the factors' misfit (beyond the raw rates' white noise)"
 
 
 def _measured(
-    state: State, data: Data, cov: ParameterCovariance, rates: Array, length: int
+    state: State, data: Data, cov: ParameterCovariance, rates: Array, length: int, held: Held | None
 ) -> dict[str, Any]:
     """The options the verdict's continuous rules read (:mod:`.motion_checks`) and the lever
-    arm with its standard error."""
+    arm with its standard error (a gyroscope's gain held in rad/s: its unit not in question)."""
     t, g = data.time, data.gyro
+    units = None if held is not None and held.mask[22] else gyro_units_ratio(t, data.mag, g)
     return {
         "lever_arm": {
             "metres": [float(x) for x in state.lever],
             "std_m": [float(x) for x in cov.stds(list(LEVER_NAMES))],
         },
         "gyro_check": gyro_check(state.gyro_gain, cov),
-        "gyro_units_ratio": gyro_units_ratio(t, data.mag, g),
+        "gyro_units_ratio": units,
         "field_check": field_check(state, data, length),
         "turn_check": turn_check(t, rates, g),
     }
 
 
-def _starting(data: Data, given: str, held: Held | None) -> tuple[State, dict[str, Any], Prior]:
-    """The start (:func:`.initial.start`), the sampling convention (:func:`_sampling`, set on
-    ``data``), the held blocks put in place and the prior that holds them."""
+def _starting(
+    data: Data,
+    given: str,
+    held: Held | None,
+    drive: Inputs | None = None,
+    attitude: ArrayLike | None = None,
+) -> tuple[State, dict[str, Any], Prior]:
+    """The motion checked (:func:`.observability.check_motion`, unless the accelerometer is
+    held: it needs no tilts), the start (:func:`.initial.start`; the autopilot's ``attitude``
+    when given, :func:`.autopilot_aid.attitude_start`), the sampling convention
+    (:func:`_sampling`, set on ``data``), the interference term's inputs, the held blocks put in
+    place and the prior that holds them."""
+    if held is None or not held.mask[0]:
+        check_motion(data.accel, data.gyro, data.time)
     first = start(data)
     sampling = _sampling(first, data, given)
     data.hold = SAMPLINGS[sampling["used"]]
     if held is not None:
         first = held.apply(first)
+    first = _with_inputs(first, data, drive)
+    if attitude is not None:
+        first = attitude_start(first, data, _array("attitude", attitude, len(data.time), 4))
     return first, sampling, _held_prior(first, held)
+
+
+def _interference(
+    state: State,
+    drive: Inputs | None,
+    rotations: Array,
+    covariances: tuple[ParameterCovariance, ParameterCovariance],
+) -> InterferenceModel | None:
+    """The fitted term (:func:`.covariates.interference_model`; ``rotations`` at every
+    sample, as the inputs), ``None`` without inputs."""
+    if drive is None:
+        return None
+    gain, dip = state.mag_gain, state.dip
+    return interference_model(state.interference, drive, rotations, gain, dip, covariances)
+
+
+def _with_inputs(state: State, data: Data, drive: Inputs | None) -> State:
+    """``state`` with zero interference coefficients and ``data`` with the centred inputs,
+    when ``drive`` varies enough to fit the term (:mod:`.covariates`)."""
+    if drive is None or drive.missing:
+        return state
+    data.inputs = drive.centred
+    out = state.copy()
+    out.interference = np.zeros((len(drive.names), 3))
+    return out
 
 
 def _held_prior(state: State, held: Held | None) -> Prior:
@@ -406,25 +471,27 @@ def _prepare(
         options.hold = None
     o = options
     _check_options(o.max_iter, o.rounds, o.tol, o.gyro_sampling, o.gyro_noise)
-    held = held_blocks(o.hold, o.prior)
+    held = o.prior if isinstance(o.prior, Held) else held_blocks(o.hold, o.prior)
     data = _inputs(*readings)
+    drive = interference_inputs(o.inputs, len(data.time))  # :mod:`.covariates`
     thermal: dict[str, Any] | None = None
     if temperature is not None:
         data.temperature, thermal = temperature_record(
             _array("temperature", temperature, len(data.time), 1)
         )
-    check_motion(data.accel, data.gyro, data.time)
     step, rule = knot_step(data.time, data.gyro)
     rate = 1.0 / float(np.median(np.diff(data.time)))
     knots = -(-len(data.time) // step)
     progress = None if on_progress is None else Progress(on_progress, knots, int(o.max_iter))
-    return Plan(data, step, rule, rate, options, progress), held, thermal
+    return Plan(data, step, rule, rate, options, progress, drive), held, thermal
 
 
 def _solve(plan: Plan, held: Held | None, thermal: dict[str, Any] | None) -> _Solution:
     """The start, the rounds (:func:`_rounds`), the temperature terms the log identifies
     (:func:`.thermal_terms.choose_orders`, then the rounds again) and fieldcal's gauge."""
-    first, sampling, base_prior = _starting(plan.data, plan.options.gyro_sampling, held)
+    o = plan.options
+    drive = plan.drive
+    first, sampling, base_prior = _starting(plan.data, o.gyro_sampling, held, drive, o.attitude)
     first.rotations = np.ascontiguousarray(first.rotations[:: plan.step])
     state, knots, w, levels, total, converged = run_rounds(first, plan, base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
@@ -491,7 +558,7 @@ def _fit(
     n = len(plan.data.time)
     index = np.arange(n) if rows is None else np.asarray(rows, dtype=int)
     options_out, findings = _record(plan, sol, cov, crb, per, index, held)
-    return _calibration(plan, sol, cov, per, options_out, findings)
+    return _calibration(plan, sol, (cov, crb), per, options_out, findings)
 
 
 def _record(
@@ -525,7 +592,7 @@ def _record(
         dt = np.diff(t)
         raw_turned = np.degrees(np.sum(np.abs(0.5 * (g[1:] + g[:-1])) * dt[:, None], axis=0))
         lacking = motion_advice(data.accel, raw_turned)
-    measured = _measured(state, data, cov, per["rates"], per["length"])
+    measured = _measured(state, data, cov, per["rates"], per["length"], held)
     findings = _findings(check, disturbed, trajectory, lacking, sol.thermal, measured)
     step = max(1, round(EPOCH_SECONDS * plan.rate))
     options: dict[str, Any] = {
@@ -567,13 +634,14 @@ def _record(
 def _calibration(
     plan: Plan,
     sol: _Solution,
-    cov: ParameterCovariance,
+    covariances: tuple[ParameterCovariance, ParameterCovariance],
     per: dict[str, Any],
     options: dict[str, Any],
     findings: Findings,
 ) -> Calibration:
-    """The result: the three sensors, the field, the rotations every :data:`EPOCH_SECONDS`."""
-    state = sol.state
+    """The result: the three sensors, the field, the rotations every :data:`EPOCH_SECONDS`
+    (``covariances``: the sandwich and the Cramér–Rao bound)."""
+    state, cov = sol.state, covariances[0]
     rate_var = float(sol.levels["gyro"][0])
     white = gyro_rate_variance(plan.data.gyro, state.gyro_gain)
     temps = {} if sol.thermal is None else models(state, sol.thermal)
@@ -593,6 +661,7 @@ def _calibration(
             noise_cov=float(np.median(per["mag"])) * np.eye(3),
             noise_source="continuous residuals",
             temperature=temps.get("mag"),
+            interference=_interference(state, plan.drive, per["rotations"], covariances),
         ),
         gravity=GRAVITY,
         magnetic=magnetic_reference(state.dip),

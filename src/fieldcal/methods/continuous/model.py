@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from ...geometry.frames import GRAVITY, magnetic_derivative, magnetic_reference
 from ...geometry.rotations import exp_so3, hat
+from .covariates import interference_shift
 
 __all__ = [
     "LEVER",
@@ -114,6 +115,8 @@ class Data:
     #: ``D_c`` (n, 3, 3, 12): ``∂(M_k u)/∂(K_g, b_g) = Σ_c u_c D_c`` (:mod:`.knots`).
     mixing_jacobian: Array | None = None
     factors: KnotFactors | None = None
+    #: The interference term's inputs less their means (n, k) (:mod:`.covariates`), or none.
+    inputs: Array | None = None
 
     def __post_init__(self) -> None:
         if self.gyro_slope is None:
@@ -182,6 +185,8 @@ class State:
     temps: dict[str, Array] = field(default_factory=dict)
     #: The lever arm ``r`` (metres, body frame, Eq. C1a).
     lever: Array = field(default_factory=lambda: np.zeros(3))
+    #: The magnetometer's interference coefficients (k, 3) (:mod:`.covariates`, Eq. C2i).
+    interference: Array = field(default_factory=lambda: np.zeros((0, 3)))
 
     def copy(self) -> State:
         return State(
@@ -195,6 +200,7 @@ class State:
             self.rotations.copy(),
             {s: c.copy() for s, c in self.temps.items()},
             self.lever.copy(),
+            self.interference.copy(),
         )
 
     def vector(self) -> Array:
@@ -212,6 +218,7 @@ class State:
                 self.gyro_bias,
                 self.lever,
                 *(self.temps[s].ravel() for s in TEMP_SENSORS if s in self.temps),
+                self.interference.ravel(),  # interference (:mod:`.covariates`)
             ]
         )
 
@@ -227,6 +234,7 @@ class State:
                 size = self.temps[s].size
                 temps[s] = from_vec[at : at + size].reshape(-1, 3)
                 at += size
+        interference = from_vec[at : at + self.interference.size].reshape(-1, 3)
         return State(
             Ka,
             from_vec[6:9],
@@ -238,6 +246,7 @@ class State:
             exp_so3(dR) @ self.rotations,
             temps,
             from_vec[LEVER],
+            interference,
         )
 
 
@@ -252,8 +261,10 @@ def columns(state: State, sensor: str) -> NDArray[np.intp]:
             continue
         size = state.temps[s].size
         if s == sensor:
-            return np.concatenate([base, np.arange(at, at + size)])
+            base = np.concatenate([base, np.arange(at, at + size)])
         at += size
+    if sensor == "mag" and state.interference.size:  # interference (:mod:`.covariates`)
+        base = np.concatenate([base, np.arange(at, at + state.interference.size)])
     return base
 
 
@@ -447,7 +458,9 @@ def accel_of(state: State, data: Data) -> Blocks:
 
 def mag_of(state: State, data: Data) -> Blocks:
     """:func:`mag_block` of a whole log (or chunk, or knots: :func:`mag_columns`)."""
-    return mag_block(state, data.mag, data.temperature, data.mixing, _spread(state, data))
+    return mag_block(
+        state, data.mag, data.temperature, data.mixing, _spread(state, data), data.inputs
+    )
 
 
 def mag_block(
@@ -456,10 +469,14 @@ def mag_block(
     temperature: Array | None = None,
     mixing: Array | None = None,
     spread: tuple[Array, Array] | None = None,
+    inputs: Array | None = None,
 ) -> Blocks:
     """Eq. C2: residuals and Jacobians of the magnetometer at every sample (temperature and
-    a knot's ``mixing`` as in :func:`accel_block`)."""
+    a knot's ``mixing`` as in :func:`accel_block`; the interference term in ``inputs``,
+    Eq. C2i)."""
     mag, Jc = _thermal(state, "mag", mag, temperature)
+    mag, Ji = interference_shift(state.interference, mag, inputs)
+    Jc = np.concatenate([Jc, Ji], axis=2)
     v = state.rotations @ magnetic_reference(state.dip)
     dv = state.rotations @ magnetic_derivative(state.dip)
     Km = state.mag_gain
@@ -499,6 +516,7 @@ def residuals(state: State, data: Data) -> tuple[Array, Array]:
         ell = (d_lever @ r[:, None])[:, :, 0]
     accel = _thermal(state, "accel", data.accel, data.temperature)[0]
     mag = _thermal(state, "mag", data.mag, data.temperature)[0]
+    mag = interference_shift(state.interference, mag, data.inputs)[0]
     up = state.rotations @ GRAVITY
     field = state.rotations @ magnetic_reference(state.dip)
     if data.mixing is not None:

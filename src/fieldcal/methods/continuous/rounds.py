@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import dataclasses
 import time as time_module
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from .covariates import Inputs
 from .knots import reduce, sample_rotations
 from .model import Data, State, residuals
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
@@ -90,6 +91,10 @@ class Options:
     gyro_noise: float | None
     gyro_sampling: str
     prior: object
+    #: The interference term's inputs and the autopilot's attitude (:mod:`.covariates`,
+    #: :mod:`.autopilot_aid`).
+    inputs: Mapping[str, ArrayLike] | None = None
+    attitude: ArrayLike | None = None
 
 
 @dataclass
@@ -103,6 +108,8 @@ class Plan:
     rate: float
     options: Options
     progress: Progress | None
+    #: The interference term's inputs as checked (:func:`.covariates.interference_inputs`).
+    drive: Inputs | None = None
 
     @property
     def knot_rate(self) -> float:

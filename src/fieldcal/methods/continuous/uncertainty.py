@@ -38,6 +38,7 @@ from ...calibration import ParameterCovariance
 from ...likelihood.information import sandwich as sandwich_form
 from ...likelihood.information import scaled_inverse
 from ...thermal import temperature_names
+from .covariates import interference_labels
 from .model import (
     N_PARAMS,
     SYM,
@@ -92,7 +93,11 @@ LEVER_NAMES: tuple[str, ...] = tuple(f"lever_arm_m[{i}]" for i in range(3))
 def _extra(state: State) -> tuple[str, ...]:
     """The covariance's names past :data:`NAMES`: the lever arm's, then the temperature
     coefficients' (the parameter vector's order)."""
-    return (*LEVER_NAMES, *temperature_labels(state))
+    return (
+        *LEVER_NAMES,
+        *temperature_labels(state),
+        *interference_labels(len(state.interference)),  # :mod:`.covariates`
+    )
 
 
 def temperature_labels(state: State) -> list[str]:
