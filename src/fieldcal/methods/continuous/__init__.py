@@ -233,6 +233,7 @@ def fit_continuous(
         measured from the raw rates' fourth differences in the log's quietest stretches (white
         jitter of the true rate at every sample is indistinguishable: give it then, e.g. from a
         datasheet or a still log).
+    gyro_sampling : {"auto", "instant", "mean"}
         Whether a gyroscope reading is the rate at its instant (the interval between samples
         takes the mean of its two ends) or the mean rate over the interval that follows it.
         ``"auto"``: detected from how the magnetometer's direction turns
