@@ -39,6 +39,7 @@ from .settings import (
     PoseNoiseSpec,
     TrustSettings,
     renamed,
+    settings_of,
     wmm_unit,
 )
 from .stats.noise_models import noise_covariance, per_sensor, pose_noise_value
@@ -370,69 +371,51 @@ def calibrate(
     Parameters
     ----------
     accel, mag
-        Each a sequence of N arrays of shape (n_i, 3): the raw samples taken while the device
-        rested in pose i (same N and order for both sensors). Either may be ``None`` to
-        calibrate one sensor alone. Methods registered as taking continuous input
-        (``"ellipsoid"``) also take single (n, 3) arrays of samples.
+        Each N arrays (n_i, 3): the raw samples of pose i (same poses for both; ``None``: one
+        sensor alone). ``"ellipsoid"`` also takes single (n, 3) arrays of samples.
     method : str
-        A name in :data:`fieldcal.METHODS`: ``"mle"`` (default, joint maximum likelihood),
-        ``"greedy"`` (the seed paper's algorithm), ``"ellipsoid"`` (CK-Explorer).
+        In :data:`fieldcal.METHODS`: ``"mle"`` (default), ``"greedy"``, ``"ellipsoid"``.
     gravity, field_strength : float, optional
-        Magnitudes of the reference fields; the gains come out in raw units per unit of these.
-        Default 1 (unit fields). ``field_strength="wmm"`` (or ``"wmm:uT"``, ``"wmm:nT"``)
-        takes the World Magnetic Model's total intensity at ``location``, in µT (or nT).
+        Magnitudes of the reference fields (default 1); ``field_strength="wmm"`` (``"wmm:nT"``)
+        takes the World Magnetic Model's total intensity at ``location`` in µT (nT).
     noise : float, array, or dict, optional
-        Noise of one raw sample, used instead of the within-pose scatter (Eq. 7): a standard
-        deviation (scalar or per axis), a 3x3 covariance, or ``{"accel": ..., "mag": ...}``.
+        One raw sample's noise instead of the within-pose scatter (Eq. 7): std, 3x3 covariance.
     pose_noise : "auto", "none", float, or dict
-        The pose-level noise ``q`` (raw units, per axis) of each pose mean, beyond
-        ``noise / sqrt(samples)``: estimated with the calibration (``"auto"``, default), zero
-        (``"none"``, the seed paper's model) or given; per sensor as
-        ``{"accel": ..., "mag": ...}``. With one sample per pose it is the noise from the
-        residuals.
+        The pose-level noise ``q`` (raw units, per axis) of each pose mean beyond ``noise /
+        sqrt(samples)``: estimated (``"auto"``), zero (``"none"``, the seed paper's) or given.
     robust : bool
-        Test every pose and drop disturbed ones, refitting (default True); each dropped pose
-        is in ``cal.rejected``.
+        Test every pose, drop disturbed ones (``cal.rejected``) and refit (default True).
     false_alarm : float
         Family-wise false-alarm rate of the pose tests per calibration (default 0.01).
     cut_unsteady : bool, optional
-        Cut samples that are not still (a bump, a tap) inside each pose before Eq. 5/7.
-        Default: the same as ``robust``. (``trim=``, its old name, is taken until the next
-        release.)
+        Cut samples that are not still inside each pose before Eq. 5/7 (default: ``robust``;
+        ``trim=``, its old name, is taken until the next release).
     body_frame : {"accel", "mag"}
         Which sensor's gain is made symmetric, fixing the common body frame (Sec. 4.3).
     mag_mirrored : bool
-        Whether the magnetometer's axes, as given, are mirrored relative to the
-        accelerometer's (a left-handed triad, e.g. the LSM9DS1's). Static poses cannot tell
-        this from a field in the opposite magnetic hemisphere (the dip's sign), so it is a
-        prior: by default the magnetometer's gain comes out with a positive determinant. With a
-        ``location`` the model's dip decides instead (the verdict warns when that contradicts
-        what is stated here); ``cal.options["mag_handedness"]`` says which decided.
+        Whether the magnetometer's axes are mirrored relative to the accelerometer's (a
+        left-handed triad, e.g. the LSM9DS1's): a prior static poses cannot test; with a
+        ``location`` the model's dip decides (``cal.options["mag_handedness"]`` says which).
     location : str or sequence of float, optional
-        Where the data were recorded, ``"LAT,LON[,ALT_M]"`` or ``(lat, lon[, alt_m])`` in
-        decimal degrees and metres: the World Magnetic Model's field there
-        (:func:`fieldcal.expected_field`) becomes ``cal.field_reference`` (JSON
-        ``reference``), decides the handedness and is compared with the fitted dip.
+        ``"LAT,LON[,ALT_M]"`` or ``(lat, lon[, alt_m])``: the World Magnetic Model's field
+        there (:func:`fieldcal.expected_field`) becomes ``cal.field_reference``.
     date : str or datetime.date, optional
-        When (``"YYYY-MM-DD"``) for the model; default today. Needs ``location``.
+        When (``"YYYY-MM-DD"``, default today) for the model.
     dip_allowance_deg : float
-        The local anomaly allowed beyond the uncertainties before the verdict warns that the
-        fitted dip differs from the model's (default :data:`fieldcal.reference.
-        DIP_ALLOWANCE_DEG`, 2°).
+        The local anomaly allowed before the verdict warns that the dip differs from the
+        model's (default 2°).
     targets : Targets, optional
-        The accuracy the verdict asks for (:class:`fieldcal.Targets`: tilt, heading, norm;
-        defaults documented there): a predicted error beyond its target warns (``accuracy``),
-        beyond 5 times fails (``unusable``).
+        The accuracy the verdict asks for (:class:`fieldcal.Targets`): beyond a target warns,
+        beyond 5 times fails.
     on_progress : callable, optional
-        Called with one line of text at each step of the robust fit (for progress displays).
+        Hears one line at each step of the robust fit.
     time_ordered : bool
-        The poses are consecutive pieces of one motion, in time order: error bars widened for
-        the correlation measured between neighbours (:mod:`fieldcal.trust.correlation`).
+        The poses are consecutive pieces of one motion: error bars widened for the correlation
+        between neighbours (:mod:`fieldcal.trust.correlation`).
     temperature : sequence of arrays, optional
         Each pose's temperatures (°C): biases in T (``docs/methods/temperature.md``).
     **options
-        The method's own options (keyword-only parameters of its ``fit``), e.g. ``gamma`` for
-        ``"greedy"``; an unknown one is a ``ValueError`` listing the known ones.
+        The method's own options (its ``fit``'s keywords, e.g. ``gamma`` for ``"greedy"``).
 
     Returns
     -------
@@ -441,27 +424,13 @@ def calibrate(
 
     Notes
     -----
-    The defaults are the fields' of :class:`fieldcal.settings.FitSettings` and
-    :class:`~fieldcal.settings.TrustSettings` (the option table); :func:`calibrate_with` is the
-    same call with those objects.
+    Defaults: :class:`fieldcal.settings.FitSettings`, :class:`~fieldcal.settings.TrustSettings`
+    (the option table); :func:`calibrate_with` is the same call with those objects.
     """
+    given = dict(locals())  # the keywords by name: the settings' fields are among them
     if "trim" in options:  # the old name, for one release
-        given = renamed({"trim": options.pop("trim"), **_given(cut_unsteady)})
-        cut_unsteady = given["cut_unsteady"]  # type: ignore[assignment]  # checked below
-    fit = FitSettings(
-        method=method,
-        gravity=gravity,
-        field_strength=field_strength,
-        noise=noise,
-        pose_noise=pose_noise,
-        robust=robust,
-        cut_unsteady=cut_unsteady,
-        body_frame=body_frame,
-        mag_mirrored=mag_mirrored,
-    )
-    trust = TrustSettings(
-        location=location, date=date, dip_allowance_deg=dip_allowance_deg, false_alarm=false_alarm
-    )
+        given.update(renamed({"trim": options.pop("trim"), **_given(cut_unsteady)}))
+    fit, trust = settings_of(FitSettings, given), settings_of(TrustSettings, given)
     return calibrate_with(
         accel,
         mag,

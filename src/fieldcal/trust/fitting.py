@@ -41,7 +41,7 @@ from .certificate import certify, pose_table
 from .correlation import widen_for_correlation
 from .evaluate import Evaluation, evaluate
 from .handedness import Handedness, decide, reference_mirrored
-from .outliers import REASONS, pose_tests
+from .outliers import REASONS, PoseTests, pose_tests
 from .pose_noise import (
     PoseNoise,
     estimate,
@@ -190,6 +190,33 @@ def _subset_variances(runner: _Runner, stats: PoseStats, free: tuple[str, ...]) 
     return with_variances(stats, {s: noise.variance[s] for s in free})
 
 
+def _rejections(
+    tests: PoseTests,
+    worst: NDArray[np.intp],
+    keep: NDArray[np.intp],
+    alpha: float,
+    current: PoseStats,
+    on_progress: Callable[[str], None] | None,
+) -> list[RejectedPose]:
+    """The poses ``worst`` (indices into ``keep``) as rejected, each with its test's figures."""
+    out = []
+    for i in worst:
+        kind, why = tests.kind(int(i), alpha, current)
+        column = int(np.argmin(tests.p_value[i]))
+        out.append(
+            RejectedPose(
+                index=int(keep[i]),
+                sensor=kind,
+                statistic=float(tests.statistic[i, column]),
+                p_value=float(tests.p_value[i, column]),
+                reason=REASONS[why],
+            )
+        )
+        if on_progress is not None:
+            on_progress(f"dropped pose {int(keep[i])} ({kind})")
+    return out
+
+
 def fit_trusted(
     method: Method,
     stats: PoseStats,
@@ -256,20 +283,7 @@ def fit_trusted(
             left = int(flagged.sum())
             break
         worst = _worst(tests.p_value.min(axis=1), flagged, len(keep) - min_keep)
-        for i in worst:
-            kind, why = tests.kind(int(i), alpha, current)
-            column = int(np.argmin(tests.p_value[i]))
-            rejected.append(
-                RejectedPose(
-                    index=int(keep[i]),
-                    sensor=kind,
-                    statistic=float(tests.statistic[i, column]),
-                    p_value=float(tests.p_value[i, column]),
-                    reason=REASONS[why],
-                )
-            )
-            if on_progress is not None:
-                on_progress(f"dropped pose {int(keep[i])} ({kind})")
+        rejected += _rejections(tests, worst, keep, alpha, current, on_progress)
         local = np.delete(np.arange(len(keep)), worst)
         keep = keep[local]
         sub = current.subset(local)  # the current noise model as the start
