@@ -200,10 +200,8 @@ def fit_continuous(
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
     Maximum likelihood over the three sensors' gains and biases, the dip, the noise levels
-    and the orientation at knots a few hundredths of a second apart (:mod:`.knots`: each
-    window of samples reduced exactly, the calibrated gyroscope pre-integrated between knots),
-    the calibrated gyroscope driving the orientation between them
-    (``docs/methods/continuous.md``, Eq. C1–C6, C1′–C3′).
+    and the orientation at knots a few hundredths of a second apart, the calibrated gyroscope
+    pre-integrated between them (:mod:`.knots`; ``docs/methods/continuous.md``, Eq. C1–C6).
 
     Parameters
     ----------
@@ -234,34 +232,25 @@ def fit_continuous(
         jitter of the true rate at every sample is indistinguishable: give it then, e.g. from a
         datasheet or a still log).
     gyro_sampling : {"auto", "instant", "mean"}
-        Whether a gyroscope reading is the rate at its instant (the interval between samples
-        takes the mean of its two ends) or the mean rate over the interval that follows it.
-        ``"auto"``: detected from how the magnetometer's direction turns
-        (:func:`.preintegration.sampling_evidence`), ``"instant"`` when the data cannot tell;
-        ``options["gyro_sampling"]`` records the choice and how it was made.
+        A gyroscope reading is the rate at its instant, or the mean rate over the interval
+        that follows it; ``"auto"``: detected (:func:`.preintegration.sampling_evidence`),
+        ``"instant"`` when the data cannot tell (``options["gyro_sampling"]`` says which).
     prior : Calibration or path, optional
         The earlier calibration (a ``cal.json``) the ``hold`` blocks are held at; or the
         blocks held themselves (:func:`.autopilot_aid.autopilot_held`: a flight log's
         accelerometer and gyroscope gain at the autopilot's calibration).
     inputs : mapping, optional
         ``{"current": (n,)}`` (A) or ``{"throttle": (n,)}`` (0–1): the magnetometer's
-        interference term ``C (u − ū)`` is fitted jointly with everything else
-        (:mod:`.covariates`, Eq. C2i) and returned as ``cal.mag.interference``
-        (:class:`fieldcal.interference.InterferenceModel`; not identifiable, zeros and the
-        reason, when the input does not vary enough or follows the orientation).
+        interference term ``C (u − ū)`` fitted jointly (:mod:`.covariates`, Eq. C2i), in
+        ``cal.mag.interference`` (zeros and the reason when it is not identifiable).
     attitude : (n, 4) array_like, optional
         The autopilot's attitude estimate (body → NED quaternions, scalar first): the start's
         trajectory and magnetometer (:func:`.autopilot_aid.attitude_start`); the fit moves them.
     on_progress : callable, optional
-        Hears the progress: the knots, the round and the iteration as fractions, the time
-        left from the second round, the error bars' stage (a line at most every
-        :data:`.rounds.PROGRESS_SECONDS` within a round).
+        Hears the round and iteration as fractions and the time left (:mod:`.rounds`).
     temperature : (n,) array_like, optional
-        The die temperature at each sample (°C). Each sensor's bias then gets the terms in
-        ``T − T_ref`` (``T_ref`` the mean) that the log identifies
-        (:mod:`.thermal_terms`); ``cal.<sensor>.temperature`` holds them (order 0: none kept;
-        ``refused`` with too small a span, verdict code ``temperature_span``) and
-        ``options["temperature"]`` the tests. Without it, nothing changes.
+        The die temperature at each sample (°C): each sensor's bias gets the terms in
+        ``T − T_ref`` the log identifies (:mod:`.thermal_terms`, ``cal.<sensor>.temperature``).
 
     Returns
     -------
