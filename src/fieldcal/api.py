@@ -163,7 +163,8 @@ def _field_strength(value: object, reference: FieldReference | None) -> float | 
     unit = wmm_unit(value)
     if unit is None:
         raise InputError(
-            f"field_strength {value[:40]!r} is neither a number nor wmm, wmm:uT or wmm:nT"
+            f"field_strength {value[:40]!r} is neither a number nor wmm, wmm:uT, wmm:nT, "
+            "wmm:gauss or wmm:mgauss"
         )
     if reference is None:
         raise InputError(

@@ -74,7 +74,16 @@ def parse_pose_noise(text: str) -> str | float | dict[str, str | float]:
 
 
 #: ``field_strength`` keywords for the World Magnetic Model's intensity, and their unit.
-WMM_UNITS = {"wmm": "uT", "wmm:ut": "uT", "wmm:µt": "uT", "wmm:nt": "nT"}
+WMM_UNITS = {
+    "wmm": "uT",
+    "wmm:ut": "uT",
+    "wmm:µt": "uT",
+    "wmm:nt": "nT",
+    "wmm:g": "G",
+    "wmm:gauss": "G",
+    "wmm:mg": "mG",
+    "wmm:mgauss": "mG",
+}
 
 
 def wmm_unit(value: object) -> str | None:
@@ -90,8 +99,8 @@ def parse_field_strength(text: str) -> float | str:
         return text.strip()
     if text.strip()[:1].isalpha():
         raise ValueError(
-            f"{text!r} is neither a number nor wmm (wmm:uT, wmm:nT: the World Magnetic "
-            "Model's intensity at --location)"
+            f"{text!r} is neither a number nor wmm (wmm:uT, wmm:nT, wmm:gauss, wmm:mgauss: the "
+            "World Magnetic Model's intensity at --location)"
         )
     return MAGNITUDE.check(text)
 

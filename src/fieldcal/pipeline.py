@@ -328,7 +328,19 @@ def _located(log: Log, settings: LogSettings) -> tuple[LogSettings, list[str]]:
     date = settings.trust.date or log.metadata.get("date")
     trust = dataclasses.replace(settings.trust, location=where, date=date)
     note = f"location {where} from the log's GPS (the World Magnetic Model there)"
-    return dataclasses.replace(settings, trust=trust), [note]
+    settings = dataclasses.replace(settings, trust=trust)
+    # the log states its magnetometer's unit: scale to the model's intensity in it, so the
+    # gains export to the autopilot (its parameters are in that unit)
+    unit = _WMM_UNIT_OF.get(str(log.metadata.get("mag_unit", "")).lower())
+    if unit is None or settings.fit.field_strength is not None:
+        return settings, [note]
+    fit = dataclasses.replace(settings.fit, field_strength=f"wmm:{unit}")
+    note += f", its intensity the field strength in the log's {unit}"
+    return dataclasses.replace(settings, fit=fit), [note]
+
+
+#: A flight log's magnetometer unit (:mod:`fieldcal.logs.flight`) → the ``wmm:`` unit.
+_WMM_UNIT_OF = {"gauss": "gauss", "mgauss": "mgauss", "ut": "uT", "nt": "nT"}
 
 
 #: The still detector's own options (given with ``poses="auto"``, they choose rests).

@@ -101,11 +101,12 @@ class FieldReference(ArrayDataclass):
         return f"{abs(lat):.2f}° {north}, {abs(lon):.2f}° {east}"
 
     def intensity_in(self, unit: str) -> float:
-        """The total intensity in ``"uT"`` (microtesla) or ``"nT"``."""
+        """The total intensity in ``"uT"`` (microtesla), ``"nT"``, ``"G"`` (gauss, a PX4
+        log's unit) or ``"mG"`` (milligauss, an ArduPilot log's)."""
         return self.intensity / _UNITS[unit]
 
 
-_UNITS = {"nT": 1.0, "uT": 1000.0}
+_UNITS = {"nT": 1.0, "uT": 1000.0, "G": 1e5, "mG": 100.0}
 
 
 def _number(text: str, what: str, spec: str) -> float:

@@ -71,3 +71,38 @@ def test_real_ulog_holds_the_autopilots_calibration_and_judges_the_compass(tmp_p
     assert "continuous_undetermined" in codes
     assert "gyro_units" not in codes and "implausible_gain" not in codes
     assert "interference_not_identifiable" in codes
+
+
+def test_real_ulog_with_gps_is_scaled_to_the_models_field_and_exports_to_px4(tmp_path):
+    """A flight log with a GPS fix: the magnetometer scaled to the World Magnetic Model's
+    intensity there in the log's own unit (gauss for PX4), so ``fieldcal export --format px4``
+    writes the parameters instead of asking for a field strength; the log's placeholder
+    temperature (a simulator's constant 0 °C) is no thermometer."""
+    pytest.importorskip("pyulog", reason="the [ulog] extra (pyulog) is not installed")
+    path = ULOGS / "sample_px4_events.ulg"
+    if not path.is_file():
+        pytest.skip(f"{path} is absent (../shared/data beside the repository)")
+    from click.testing import CliRunner
+
+    from fieldcal.cli import cli
+    from fieldcal.reference import expected_field
+
+    out, params = tmp_path / "cal.json", tmp_path / "cal.params"
+    result = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(out)])
+    assert result.exit_code in (0, 1, 3), result.output
+    from fieldcal import Calibration
+
+    cal = Calibration.from_json(out.read_text())
+    assert cal.field_reference is not None
+    ref = cal.field_reference
+    model = expected_field((ref.latitude_deg, ref.longitude_deg, ref.altitude_m), ref.date)
+    assert cal.field_strength == pytest.approx(model.intensity_in("G"), rel=1e-6)
+    assert 0.2 < model.intensity_in("G") < 0.7  # Zürich: about 0.48 G
+    doc = json.loads(out.read_text())
+    codes = {r["code"] for r in doc["verdict"]["reasons"]}
+    assert "temperature_span" not in codes
+    exported = CliRunner().invoke(cli, ["export", str(out), "--format", "px4", "-o", str(params)])
+    assert exported.exit_code == 0, exported.output
+    text = params.read_text()
+    assert "CAL_MAG0_XSCALE" in text
+    assert text.count("# Power compensation") <= 1

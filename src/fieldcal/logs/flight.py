@@ -162,6 +162,9 @@ def flight_table(log: FlightLog, *, mag: int | None = None, imu: int | None = No
             chosen[role] = stream
     # the IMU's temperature when logged (an IMU without one is no error)
     temps = [s for s in log.of("temperature") if imu is None or s.instance == imu]
+    # a temperature that never moves by a hundredth of a kelvin is a placeholder (a simulator
+    # logs 0.0): no thermometer, not a board held at one temperature
+    temps = [s for s in temps if np.ptp(s.values) >= 0.01]
     if temps:
         chosen["temperature"] = temps[0]
     for role in ("current", "voltage", "throttle", "attitude"):

@@ -102,8 +102,8 @@ RULES: dict[str, tuple[Level, str]] = {
     ),
     "coverage": (
         "warn",
-        "the poses cover the orientations poorly (the body's {axis} axis rarely points up or "
-        "down); add such poses for a better calibration",
+        "the recording covers the orientations poorly (the body's {axis} axis rarely points up "
+        "or down); add such orientations for a better calibration",
     ),
     "negative_dip": (
         "note",
@@ -153,9 +153,9 @@ RULES: dict[str, tuple[Level, str]] = {
     ),
     "temperature_span": (
         "note",
-        "the poses' temperatures span {span:.1f} K ({low:.1f} to {high:.1f} °C): temperature "
-        "terms need at least {need:g} K (power the board on cold and record poses while it "
-        "warms); calibrated at the mean temperature {mean:.1f} °C",
+        "the log's temperatures span {span:.1f} K ({low:.1f} to {high:.1f} °C): temperature "
+        "terms need at least {need:g} K (power the board on cold and record while it warms); "
+        "calibrated at the mean temperature {mean:.1f} °C",
     ),
     "implausible": (
         "warn",

@@ -199,7 +199,6 @@ def write(
         f"# Vehicle {sysid}, component {compid} (fieldcal export --sysid/--compid): QGroundControl",
         "# loads these lines only onto the vehicle with that system id.",
         *power_lines,
-        *power_lines,
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
