@@ -35,6 +35,7 @@ from .held_blocks import Held, held_blocks
 from .initial import start
 from .model import LEVER, Data, State, accel_of, mag_block
 from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
+from .motion_noise import field_direction_variance, once_per_stretch
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
@@ -98,6 +99,9 @@ def _weights(
     floor_m = max(1e-4 * float(np.median(per_m)), 1e-300)
     va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
     vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
+    # what the model leaves out, counted as it is (Eq. C6a–C6b, :mod:`.motion_noise`)
+    va = once_per_stretch(va, length)
+    vm = vm + field_direction_variance(data.mag, state.mag_bias)
     dt = np.diff(data.time)
     w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * dt**2))
     return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
