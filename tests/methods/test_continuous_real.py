@@ -28,7 +28,9 @@ from fieldcal.methods.continuous.uncertainty import NAMES
 #: The lab's field is not uniform: after either calibration (ellipsoid or this fit) the
 #: magnetometer's norm still spreads by 2.3 %, and the two disagree on K Kᵀ by 4 %.
 ALLOWANCE = {"accel": 0.15, "mag": 1.0, "gyro": 0.012}
-GAIN_ALLOWANCE = {"accel": 0.02, "mag": 0.06, "gyro": 0.02}
+#: The accelerometer's K Kᵀ within 2.5 %: 2.0 % seen since its gravity comes mostly from the
+#: quieter stretches (moving ones count once each, Eq. C6a).
+GAIN_ALLOWANCE = {"accel": 0.025, "mag": 0.06, "gyro": 0.02}
 #: Every third sample (95 Hz): the hand's motion is far below 47 Hz, and the test stays fast.
 DECIMATE = 3
 

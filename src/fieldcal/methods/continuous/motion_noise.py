@@ -12,8 +12,9 @@ capture, ``benchmarks/broad_causes.py``):
   average down over the stretch's samples as noise would: counted as ``k`` independent draws
   it biases the accelerometer's bias and gain (BROAD 06: 4 % of gain, 3.9° of tilt at 4σ).
   It is counted once per stretch: each sample's variance is ``σ²_white + k (σ²_stretch −
-  σ²_white − c)`` (``k`` samples per stretch, ``σ²_white`` the quietest tenth's, ``c`` three
-  times the scatter of a white-noise stretch's variance, ``σ²_white √(2/(3k))``: chance):
+  σ²_white − c)`` (``k`` samples per stretch, ``σ²_white`` the quietest tenth's, ``c``
+  :data:`CHANCE` times the scatter of a white-noise stretch's variance, ``σ²_white √(2/(3k))``:
+  chance):
   quiet stretches keep their weight, moving ones inform the gravity direction as one
   observation each.
 - **The field's direction** (C6b). Indoors the field's direction varies by degrees over a
@@ -38,8 +39,9 @@ Array = NDArray[np.float64]
 
 #: The field's direction is taken as uniform to this RMS angle over the log (degrees; Eq. C6b).
 FIELD_DIRECTION_DEG = 3.0
-#: Standard deviations of a white-noise stretch's scatter within which its excess is chance.
-CHANCE = 3.0
+#: Standard deviations of a white-noise stretch's scatter within which its excess over the
+#: quietest tenth is chance: 1.3 of them from that tenth to the white stretches' mean, 3 beyond.
+CHANCE = 4.5
 
 
 def once_per_stretch(variance: Array, length: int) -> Array:
@@ -48,7 +50,7 @@ def once_per_stretch(variance: Array, length: int) -> Array:
     k = max(1, int(length))
     white = float(np.quantile(variance, 0.1))
     # a stretch of white noise alone scatters by √(2/(3k)) of its variance: only an excess
-    # beyond CHANCE such standard deviations is body acceleration
+    # beyond CHANCE such standard deviations above the quietest tenth is body acceleration
     chance = CHANCE * white * np.sqrt(2.0 / (3.0 * k))
     out: Array = white + np.maximum(variance - white - chance, 0.0) * k
     return out
