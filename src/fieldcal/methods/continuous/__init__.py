@@ -86,11 +86,12 @@ def _array(name: str, value: ArrayLike, n: int | None, width: int) -> Array:
 
 
 def _weights(
-    state: State, data: Data, length: int, rate_var: float, kept: Array
+    state: State, data: Data, length: int, rate_var: float, kept: Array, allow: bool = True
 ) -> tuple[Weights, dict[str, Array]]:
     """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals, divided
     by the share of its errors the fit keeps (``kept``, :func:`.uncertainty.kept_shares`);
-    the gyroscope's from ``rate_var`` (rad²/s² per axis)."""
+    the gyroscope's from ``rate_var`` (rad²/s² per axis); with ``allow``, the allowances for
+    what the model leaves out (C6a–C6b)."""
     ra = accel_of(state, data).residual
     rm = mag_block(state, data.mag, data.temperature).residual
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
@@ -100,8 +101,9 @@ def _weights(
     va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
     vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
     # what the model leaves out, counted as it is (Eq. C6a–C6b, :mod:`.motion_noise`)
-    va = once_per_stretch(va, length)
-    vm = vm + field_direction_variance(data.mag, state.mag_bias)
+    if allow:
+        va = once_per_stretch(va, length)
+        vm = vm + field_direction_variance(data.mag, state.mag_bias)
     dt = np.diff(data.time)
     w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * dt**2))
     return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
@@ -515,7 +517,13 @@ def _fit(
     state, w, levels, total, converged = again(first, prior=base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
         allowed = thermal["allowed_order"]
-        state, thermal["tests"] = choose_orders(state, data, w, allowed, batch, max_iter, tol)
+        # the terms are chosen on the noise's own weights: C6a would count a drift not yet
+        # modelled as body acceleration and hide it
+        plain, _ = _weights(
+            state, data, length, float(levels["gyro"][0]), kept_shares(state, data, w), False
+        )
+        plain.prior = w.prior
+        state, thermal["tests"] = choose_orders(state, data, plain, allowed, batch, max_iter, tol)
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
             state, w, levels, more, converged = again(state, prior=base_prior)
