@@ -15,6 +15,8 @@ change one thing each:
   quiet stretches only (with ``mag ×k``: and the magnetometer kept out of the tilt);
 - ``accel +k``: the accelerometer read ``k`` samples later (its reading at ``t_{j+k}`` taken as
   the force at ``t_j``) — candidate (c), a delay between accelerometer and gyroscope;
+- ``allowances``: the estimator's experimental weights (Eq. C6a–C6b,
+  ``fit_continuous(allowances=True)``, :mod:`fieldcal.methods.continuous.motion_noise`);
 - ``batch 20 s``: the sandwich's long-run covariance over 20-s batches instead of 4 s — do the
   error bars grow when the residuals' correlation is taken over longer times?
 
@@ -55,14 +57,17 @@ VARIANTS: dict[str, tuple[float, float, int, float]] = {
     "accel moving ×100, mag ×100": (100.0, 100.0, 0, continuous.BATCH),
     "accel +3": (1.0, 1.0, 3, continuous.BATCH),
     "batch 20 s": (1.0, 1.0, 0, 20.0),
+    # the estimator's own experimental weights, Eq. C6a–C6b (fit_continuous(allowances=True))
+    "allowances (C6a–C6b)": (1.0, 1.0, 0, continuous.BATCH),
 }
+ALLOWANCES = "allowances (C6a–C6b)"
 #: A stretch is "moving" when its accelerometer variance exceeds this many times the quietest
 #: tenth's (the white noise).
 MOVING = 4.0
 
 
 @contextmanager
-def patched(mag_factor: float, moving: float, batch: float) -> Iterator[None]:
+def patched(mag_factor: float, moving: float, batch: float, allow: bool = False) -> Iterator[None]:
     """The estimator with its magnetometer's variances times ``mag_factor``, the moving
     stretches' accelerometer variances times ``moving`` and its sandwich's batch ``batch``
     seconds, restored afterwards."""
@@ -70,6 +75,8 @@ def patched(mag_factor: float, moving: float, batch: float) -> Iterator[None]:
     original_batch = continuous.BATCH
 
     def weights(*args: Any, **kwargs: Any) -> Any:
+        if allow:
+            args = (*args[:5], True)
         w, levels = original(*args, **kwargs)
         w.mag = w.mag / mag_factor
         variance = 1.0 / w.accel
@@ -97,7 +104,7 @@ def run(trial: str, step: int, variant: str) -> dict[str, object] | None:
         for axis in "xyz":  # a reading k samples later stands for this sample's force
             fitted["a" + axis] = np.roll(cols["a" + axis], -shift)
     start = time.process_time()
-    with patched(mag_factor, moving, batch):
+    with patched(mag_factor, moving, batch, variant == ALLOWANCES):
         cal = calibrate(fitted)
     cpu = time.process_time() - start
     if isinstance(cal, str):
@@ -140,18 +147,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", nargs="+", default=["01", "04", "06"], choices=list(TRIALS))
     parser.add_argument("--step", type=int, default=3)
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--no-docs", action="store_true")
     args = parser.parse_args()
     rows = []
     with pin_blas_threads():
         for trial in args.trials:
-            for variant in VARIANTS:
+            for variant in args.variants:
                 row = run(trial, args.step, variant)
                 if row is not None:
                     rows.append(row)
                     print(f"{trial} {variant}: done", file=sys.stderr, flush=True)
     command = f"python benchmarks/broad_causes.py --trials {' '.join(args.trials)}"
     command += f" --step {args.step}"
+    if args.variants != list(VARIANTS):
+        command += " --variants " + " ".join(f"'{v}'" for v in args.variants)
     lines = [
         "## BROAD: the causes of the vertical's error (issue 33)",
         "",
