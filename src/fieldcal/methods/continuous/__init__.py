@@ -109,10 +109,13 @@ def _weights(
     return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
 
 
-def _plain_weights(state: State, data: Data, w: Weights, length: int, rate_var: float) -> Weights:
+def _plain_weights(
+    state: State, data: Data, w: Weights, length: int, levels: dict[str, Array]
+) -> Weights:
     """:func:`_weights` without the allowances (C6a–C6b), ``w``'s prior kept: the temperature
     terms are chosen on the noise's own weights, as C6a would count a drift not yet modelled
     as body acceleration and hide it."""
+    rate_var = float(levels["gyro"][0])
     plain, _ = _weights(state, data, length, rate_var, kept_shares(state, data, w), False)
     plain.prior = w.prior
     return plain
@@ -537,7 +540,7 @@ def _fit(
     state, w, levels, total, converged = again(first, prior=base_prior)
     if thermal is not None and thermal["allowed_order"] > 0:
         allowed = thermal["allowed_order"]
-        plain = _plain_weights(state, data, w, length, float(levels["gyro"][0]))
+        plain = _plain_weights(state, data, w, length, levels) if allowances else w
         state, thermal["tests"] = choose_orders(state, data, plain, allowed, batch, max_iter, tol)
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
