@@ -289,8 +289,8 @@ def fit_continuous(
         Weigh for what the model leaves out (Eq. C6a–C6b, :mod:`.motion_noise`): a moving
         stretch's body acceleration counted once, the field's direction uniform only to 3°.
         Experimental: on BROAD every third sample the measured/predicted tilt came to 1.3,
-        0.55 and 1.6 (01, 04, 06; 4.3–4.9 without), but at the full 285.7 Hz trial 01 did not
-        converge in 50 iterations.
+        0.55 and 1.6 (01, 04, 06; 4.3–4.9 without); at the full 285.7 Hz trial 01 needs
+        ``max_iter=150`` (216 iterations, 9 times the default's CPU).
     temperature : (n,) array_like, optional
         The die temperature at each sample (°C). Each sensor's bias then gets the terms in
         ``T − T_ref`` (``T_ref`` the mean) that the log identifies
