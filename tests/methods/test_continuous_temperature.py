@@ -138,3 +138,12 @@ def test_temperature_jacobians_match_finite_differences():
         moved.temps["gyro"].flat[i] += h
         num = -(factors(moved).residual - factors(state).residual) / h
         assert np.allclose(num, jac[:, :, i], rtol=1e-4, atol=1e-8)
+
+
+def test_allowances_keep_the_drift_terms():
+    """With ``allowances=True`` (Eq. C6a–C6b) the orders are still chosen on the noise's own
+    weights: a drift not yet modelled is not counted as body acceleration and hidden (counted
+    so, this log kept only a magnetometer term of order 2)."""
+    log = _log(1, drift=DRIFT)
+    cal = _fit(log, temperature=log.columns["temp"], allowances=True)
+    assert cal.options["temperature"]["orders"] == {"accel": 1, "mag": 1, "gyro": 1}

@@ -319,6 +319,86 @@ def _truth(
     return truth, U
 
 
+def _check(
+    seconds: float,
+    rate: float,
+    internal_rate: float,
+    gyro_sampling: str,
+    max_rate: float,
+    translation_rms: float,
+    max_excursion: float,
+) -> None:
+    """:func:`simulate_handheld`'s arguments, or a ValueError naming the wrong one."""
+    if seconds <= 0 or rate <= 0 or internal_rate <= 0:
+        raise ValueError("seconds, rate and internal_rate must be positive")
+    if gyro_sampling not in GYRO_SAMPLING:
+        raise ValueError(f"gyro_sampling must be one of {', '.join(GYRO_SAMPLING)}")
+    if max_rate < 0 or translation_rms < 0 or max_excursion <= 0:
+        raise ValueError("max_rate and translation_rms must be ≥ 0, max_excursion > 0")
+
+
+def _specific_force(R: Array, world: Array, omega: Array, omega_dot: Array, r: Array) -> Array:
+    """The specific force in the body frame (module docstring): the turning point's
+    acceleration less gravity (``world``, rotated in), tangential and centripetal terms."""
+    out: Array = (
+        np.einsum("nij,nj->ni", R, world)
+        + np.cross(omega_dot, r)
+        + np.cross(omega, np.cross(omega, r))
+    )
+    return out
+
+
+def _noise_levels(
+    rate: float, noise_scale: float, gravity: float, field_strength: float
+) -> dict[str, float]:
+    """White-noise standard deviations per sample: MEMS densities at 100 Hz, scaled to
+    ``rate``."""
+    root = np.sqrt(rate / 100.0) * noise_scale
+    return {
+        "accel": float(MEMS_FIELD["accel_noise"] * gravity * root),
+        "mag": float(MEMS_FIELD["mag_noise"] * field_strength * root),
+        "gyro": float(MEMS_NOISE_100HZ * root),
+    }
+
+
+def _readings(
+    rng: np.random.Generator,
+    s: dict[str, Array],
+    noise: dict[str, float],
+    force: Array,
+    field: Array,
+    omega_read: Array,
+) -> dict[str, Array]:
+    """Raw readings (``a``, ``m``, ``g``: (n, 3)) from the body-frame specific force, field and
+    rates through the drawn sensors, with white noise."""
+    n = len(force)
+    return {
+        "a": force @ s["Ka"].T + s["ba"] + noise["accel"] * rng.standard_normal((n, 3)),
+        "m": field @ s["Km"].T + s["bm"] + noise["mag"] * rng.standard_normal((n, 3)),
+        "g": omega_read @ s["Kg"].T + s["bg"] + noise["gyro"] * rng.standard_normal((n, 3)),
+    }
+
+
+def _columns(
+    t: Array, readings: dict[str, Array], temperature: tuple[float, float] | None, seconds: float
+) -> dict[str, Array]:
+    """The log's columns (``t``, ``ax``…``mz``, and ``temp`` warming from T₀ towards T₁)."""
+    columns: dict[str, Array] = {"t": t}
+    for prefix in "agm":
+        for axis, column in zip("xyz", readings[prefix].T, strict=True):
+            columns[f"{prefix}{axis}"] = np.ascontiguousarray(column)
+    if temperature is not None:
+        t0, t1 = temperature
+        columns["temp"] = t0 + (t1 - t0) * (1.0 - np.exp(-3.0 * t / max(seconds, 1e-9)))
+    return columns
+
+
+def _rest_rows(still: NDArray[np.bool_]) -> tuple[tuple[int, int], ...]:
+    """The still stretches as (first row, row after the last)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    return tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
+
+
 def simulate_handheld(
     seed: int | None = None,
     *,
@@ -375,12 +455,7 @@ def simulate_handheld(
     -------
     HandheldLog
     """
-    if seconds <= 0 or rate <= 0 or internal_rate <= 0:
-        raise ValueError("seconds, rate and internal_rate must be positive")
-    if gyro_sampling not in GYRO_SAMPLING:
-        raise ValueError(f"gyro_sampling must be one of {', '.join(GYRO_SAMPLING)}")
-    if max_rate < 0 or translation_rms < 0 or max_excursion <= 0:
-        raise ValueError("max_rate and translation_rms must be ≥ 0, max_excursion > 0")
+    _check(seconds, rate, internal_rate, gyro_sampling, max_rate, translation_rms, max_excursion)
     rng = np.random.default_rng(seed)
     fine_k = max(1, round(internal_rate / rate))
     n = max(2, round(seconds * rate))
@@ -399,39 +474,16 @@ def simulate_handheld(
     position, velocity, acceleration = _translation(
         t, rate, fine_k, move, envelope, translation_rms, max_excursion
     )
-    # the specific force in the body frame (module docstring)
     g_world = GRAVITY * gravity
-    f = (
-        np.einsum("nij,nj->ni", R, acceleration + g_world)
-        + np.cross(omega_dot, r)
-        + np.cross(omega, np.cross(omega, r))
-    )
-
+    f = _specific_force(R, acceleration + g_world, omega, omega_dot, r)
     h_world = magnetic_reference(np.radians(dip)) * field_strength
-    root = np.sqrt(rate / 100.0) * noise_scale
-    sa = MEMS_FIELD["accel_noise"] * gravity * root
-    sm = MEMS_FIELD["mag_noise"] * field_strength * root
-    sg = MEMS_NOISE_100HZ * root
-    accel = f @ s["Ka"].T + s["ba"] + sa * rng.standard_normal((n, 3))
-    mag = np.einsum("nij,j->ni", R, h_world) @ s["Km"].T + s["bm"]
-    mag = mag + sm * rng.standard_normal((n, 3))
-    gyro = omega_read @ s["Kg"].T + s["bg"] + sg * rng.standard_normal((n, 3))
-
-    columns: dict[str, Array] = {"t": t}
-    for prefix, data in (("a", accel), ("g", gyro), ("m", mag)):
-        for axis, column in zip("xyz", data.T, strict=True):
-            columns[f"{prefix}{axis}"] = np.ascontiguousarray(column)
-    if temperature is not None:
-        t0, t1 = temperature
-        columns["temp"] = t0 + (t1 - t0) * (1.0 - np.exp(-3.0 * t / max(seconds, 1e-9)))
-
-    noise = {"accel": sa, "mag": sm, "gyro": sg}
+    noise = _noise_levels(rate, noise_scale, gravity, field_strength)
+    columns = _columns(
+        t, _readings(rng, s, noise, f, R @ h_world, omega_read), temperature, seconds
+    )
     truth, U = _truth(
         R, s, g_world, h_world, noise, {"seed": seed, "seconds": seconds, "rate": rate}
     )
-    still = envelope(t)[0] < 1e-12
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
-    rest_rows = tuple((int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True))
     options: dict[str, object] = {
         "seed": seed,
         "seconds": seconds,
@@ -462,7 +514,7 @@ def simulate_handheld(
         omega_dot=omega_dot,
         omega_read=omega_read,
         specific_force=f,
-        rests=rest_rows,
+        rests=_rest_rows(envelope(t)[0] < 1e-12),
         rate=float(rate),
         gravity=float(gravity),
         field_strength=float(field_strength),

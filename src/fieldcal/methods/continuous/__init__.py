@@ -48,7 +48,7 @@ from .model import LEVER, Data, State, residuals
 from .motion_checks import field_check, gyro_check, gyro_units_ratio, turn_check
 from .observability import Identifiability, check_motion, identifiability, motion_advice
 from .preintegration import HOLDS, SAMPLINGS, sampling_evidence
-from .rounds import Options, Plan, Progress, run_rounds
+from .rounds import Options, Plan, Progress, plain_weights, run_rounds
 from .solver import Prior, Weights, state_factors
 from .thermal_terms import choose_orders, models, temperature_record
 from .trajectory import downweighted, summary
@@ -196,6 +196,7 @@ def fit_continuous(
     prior: object = None,
     inputs: Mapping[str, ArrayLike] | None = None,
     attitude: ArrayLike | None = None,
+    allowances: bool = False,
 ) -> Calibration:
     """Calibrate accelerometer, magnetometer and gyroscope from a log in continuous motion.
 
@@ -213,10 +214,8 @@ def fit_continuous(
         Raw rates in rad/s (nominally; the gain absorbs a scale error).
     rows : (n,) array_like of int, optional
         Each sample's row in the log (for the down-weighted stretches); default ``0..n−1``.
-    max_iter : int
-        Levenberg–Marquardt iterations per round.
-    rounds : int
-        Rounds of noise estimation and refitting (at least 1).
+    max_iter, rounds : int
+        Levenberg–Marquardt iterations per round; rounds of noise estimation and refitting.
     tol : float
         Decrease of the cost (half a χ²) below which a round stops.
     gravity : float, optional
@@ -244,10 +243,11 @@ def fit_continuous(
         interference term ``C (u − ū)`` fitted jointly (:mod:`.covariates`, Eq. C2i), in
         ``cal.mag.interference`` (zeros and the reason when it is not identifiable).
     attitude : (n, 4) array_like, optional
-        The autopilot's attitude estimate (body → NED quaternions, scalar first): the start's
-        trajectory and magnetometer (:func:`.autopilot_aid.attitude_start`); the fit moves them.
+        The autopilot's attitude (body → NED quaternions, w first): the start's trajectory.
     on_progress : callable, optional
         Hears the round and iteration as fractions and the time left (:mod:`.rounds`).
+    allowances : bool
+        Weigh for what the model leaves out (Eq. C6a–C6b, :mod:`.motion_noise`).
     temperature : (n,) array_like, optional
         The die temperature at each sample (°C): each sensor's bias gets the terms in
         ``T − T_ref`` the log identifies (:mod:`.thermal_terms`, ``cal.<sensor>.temperature``).
@@ -272,9 +272,8 @@ def fit_continuous(
         Too short a log, time not increasing, or readings that do not outline an ellipsoid.
     """
     # the linear algebra is many small products: threads only add contention
-    options = Options(
-        max_iter, rounds, tol, gravity, hold, gyro_noise, gyro_sampling, prior, inputs, attitude
-    )
+    given = (gyro_noise, gyro_sampling, prior, inputs, attitude, allowances)
+    options = Options(max_iter, rounds, tol, gravity, hold, *given)
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
         return _fit((time, accel, mag, gyro), temperature, rows, options, on_progress)
 
@@ -488,8 +487,11 @@ def _solve(plan: Plan, held: Held | None, thermal: dict[str, Any] | None) -> _So
         allowed, o = thermal["allowed_order"], plan.options
         if plan.progress is not None:
             plan.progress.say("temperature terms")
+        chosen_on = w  # the allowances would hide a drift not yet modelled (C6a)
+        if o.allowances:
+            chosen_on = plain_weights(state, knots, w, plan.length, float(levels["gyro"][0]))
         state, thermal["tests"] = choose_orders(
-            state, knots, w, allowed, plan.batch, int(o.max_iter), float(o.tol)
+            state, knots, chosen_on, allowed, plan.batch, int(o.max_iter), float(o.tol)
         )
         thermal["orders"] = {s: len(c) for s, c in state.temps.items()}
         if state.temps:  # the noise levels again, with the terms
@@ -587,6 +589,7 @@ def _record(
     step = max(1, round(EPOCH_SECONDS * plan.rate))
     options: dict[str, Any] = {
         "mode": "continuous",
+        "allowances": bool(o.allowances),  # Eq. C6a–C6b
         "trajectory": trajectory,
         "motion": motion,
         "downweighted": disturbed,

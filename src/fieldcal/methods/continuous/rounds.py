@@ -20,11 +20,21 @@ from numpy.typing import ArrayLike, NDArray
 from .covariates import Inputs
 from .knots import reduce, sample_rotations
 from .model import Data, State, residuals
+from .motion_noise import field_direction_variance, once_per_stretch
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
 from .uncertainty import BATCH, kept_shares
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
 
-__all__ = ["COARSE", "Options", "Plan", "Progress", "gyro_variance", "run_rounds", "weights_at"]
+__all__ = [
+    "COARSE",
+    "Options",
+    "Plan",
+    "Progress",
+    "gyro_variance",
+    "plain_weights",
+    "run_rounds",
+    "weights_at",
+]
 
 Array = NDArray[np.float64]
 
@@ -43,12 +53,13 @@ PROGRESS_SECONDS = 0.5
 
 
 def weights_at(
-    state: State, knots: Data, length: int, rate_var: float, kept: Array
+    state: State, knots: Data, length: int, rate_var: float, kept: Array, allow: bool = False
 ) -> tuple[Weights, dict[str, Array]]:
     """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals at the
     knots, divided by the share of its errors the fit keeps (``kept``,
     :func:`.uncertainty.kept_shares`); the gyroscope's factor between knots from ``rate_var``
-    (rad²/s² per axis) times its intervals' ``Σ Δt²``."""
+    (rad²/s² per axis) times its intervals' ``Σ Δt²``; with ``allow``, the allowances for
+    what the model leaves out (Eq. C6a–C6b, :mod:`.motion_noise`)."""
     ra, rm = residuals(state, knots)
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
@@ -56,9 +67,21 @@ def weights_at(
     floor_m = max(1e-4 * float(np.median(per_m)), 1e-300)
     va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
     vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
+    if allow:  # what the model leaves out, counted as it is
+        va = once_per_stretch(va, length)
+        vm = vm + field_direction_variance(knots.mag, state.mag_bias)
     assert knots.factors is not None
     w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * knots.factors.dt2))
     return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
+
+
+def plain_weights(state: State, knots: Data, w: Weights, length: int, rate_var: float) -> Weights:
+    """:func:`weights_at` without the allowances (C6a–C6b), ``w``'s prior kept: the temperature
+    terms are chosen on the noise's own weights, as C6a would count a drift not yet modelled
+    as body acceleration and hide it."""
+    plain, _ = weights_at(state, knots, length, rate_var, kept_shares(state, knots, w))
+    plain.prior = w.prior
+    return plain
 
 
 def gyro_variance(state: State, knots: Data, white: float, kept: float) -> float:
@@ -95,6 +118,8 @@ class Options:
     #: :mod:`.autopilot_aid`).
     inputs: Mapping[str, ArrayLike] | None = None
     attitude: ArrayLike | None = None
+    #: The weights' allowances for what the model leaves out (Eq. C6a–C6b).
+    allowances: bool = False
 
 
 @dataclass
@@ -157,7 +182,8 @@ def run_rounds(
     state = dataclasses.replace(state, rotations=state.rotations[::factor])
     knots = reduce(data, state, plan.step * factor)
     length = max(1, round(plan.length / factor))
-    w, levels = weights_at(state, knots, length, rate_var, np.ones(3))
+    allow = plan.options.allowances
+    w, levels = weights_at(state, knots, length, rate_var, np.ones(3), allow)
     w.prior = prior
     total, rounds = 0, max(1, int(plan.options.rounds))
     kept = np.ones(3)
@@ -167,7 +193,7 @@ def run_rounds(
             state, factor, length = dataclasses.replace(state, rotations=rotations), 1, plan.length
         if r:  # the pre-integration and the windows' turns at the gyroscope found so far
             knots = reduce(data, state, plan.step)
-            w, levels = weights_at(state, knots, length, rate_var, kept)
+            w, levels = weights_at(state, knots, length, rate_var, kept, allow)
             w.prior = prior
         if plan.progress is not None:
             plan.progress.round(r, rounds)
