@@ -21,8 +21,8 @@ change one thing each:
   error bars grow when the residuals' correlation is taken over longer times?
 
 The magnetometer and batch variants replace the estimator's weights or batch length in this
-process only (:func:`fieldcal.methods.continuous._weights`, ``BATCH``): they are experiments, not
-options.
+process only (:func:`fieldcal.methods.continuous.rounds.weights_at`, ``BATCH``): they are
+experiments, not options.
 
     python benchmarks/broad_causes.py               # 01, 04, 06 at --step 3 (95 Hz)
     python benchmarks/broad_causes.py --trials 01 --no-docs
@@ -45,20 +45,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import pin_blas_threads, stamp, write_section
 from broad_mocap import TRIALS, calibrate, load, trial_row
 
-import fieldcal.methods.continuous as continuous
+import fieldcal.methods.continuous.rounds as rounds
 
 #: name → (magnetometer variance factor, moving stretches' accelerometer variance factor,
 #: accelerometer shift in samples, batch seconds)
 VARIANTS: dict[str, tuple[float, float, int, float]] = {
-    "as released": (1.0, 1.0, 0, continuous.BATCH),
-    "mag ×10": (10.0, 1.0, 0, continuous.BATCH),
-    "mag ×100": (100.0, 1.0, 0, continuous.BATCH),
-    "accel moving ×100": (1.0, 100.0, 0, continuous.BATCH),
-    "accel moving ×100, mag ×100": (100.0, 100.0, 0, continuous.BATCH),
-    "accel +3": (1.0, 1.0, 3, continuous.BATCH),
+    "as released": (1.0, 1.0, 0, rounds.BATCH),
+    "mag ×10": (10.0, 1.0, 0, rounds.BATCH),
+    "mag ×100": (100.0, 1.0, 0, rounds.BATCH),
+    "accel moving ×100": (1.0, 100.0, 0, rounds.BATCH),
+    "accel moving ×100, mag ×100": (100.0, 100.0, 0, rounds.BATCH),
+    "accel +3": (1.0, 1.0, 3, rounds.BATCH),
     "batch 20 s": (1.0, 1.0, 0, 20.0),
     # the estimator's own experimental weights, Eq. C6a–C6b (fit_continuous(allowances=True))
-    "allowances (C6a–C6b)": (1.0, 1.0, 0, continuous.BATCH),
+    "allowances (C6a–C6b)": (1.0, 1.0, 0, rounds.BATCH),
 }
 ALLOWANCES = "allowances (C6a–C6b)"
 #: A stretch is "moving" when its accelerometer variance exceeds this many times the quietest
@@ -71,8 +71,8 @@ def patched(mag_factor: float, moving: float, batch: float, allow: bool = False)
     """The estimator with its magnetometer's variances times ``mag_factor``, the moving
     stretches' accelerometer variances times ``moving`` and its sandwich's batch ``batch``
     seconds, restored afterwards."""
-    original: Callable[..., Any] = continuous._weights
-    original_batch = continuous.BATCH
+    original: Callable[..., Any] = rounds.weights_at
+    original_batch = rounds.BATCH
 
     def weights(*args: Any, **kwargs: Any) -> Any:
         if allow:
@@ -84,13 +84,13 @@ def patched(mag_factor: float, moving: float, batch: float, allow: bool = False)
         w.accel = np.where(variance > MOVING * quiet, w.accel / moving, w.accel)
         return w, levels
 
-    continuous._weights = weights  # type: ignore[assignment]
-    continuous.BATCH = batch
+    rounds.weights_at = weights  # type: ignore[assignment]
+    rounds.BATCH = batch
     try:
         yield
     finally:
-        continuous._weights = original  # type: ignore[assignment]
-        continuous.BATCH = original_batch
+        rounds.weights_at = original  # type: ignore[assignment]
+        rounds.BATCH = original_batch
 
 
 def run(trial: str, step: int, variant: str) -> dict[str, object] | None:
