@@ -475,7 +475,7 @@ def _stretches(log: Log, rate: float, still: str) -> tuple[list[tuple[int, int]]
 
 
 # --------------------------------------------------------------------------- the entry
-def _one_thread() -> contextlib.AbstractContextManager[Any]:
+def _one_thread() -> contextlib.AbstractContextManager[object]:
     """BLAS limited to one thread: the dot products and 50x50 eigen-decompositions here are
     far slower with threads contending on a shared machine (as ``fieldcal.calibrate``)."""
     try:

@@ -596,7 +596,7 @@ def _run_continuous(
         f"{100 * traj['gravity_coverage']:.0f} % of gravity directions visited, "
         f"{len(cal.options['downweighted'])} stretch(es) down-weighted for body acceleration"
     )
-    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    provenance: dict[str, object] = {"log": log.path, "columns": log.used}
     if log.device is not None:
         provenance["device"] = log.device
     hz = float(rate) if rate is not None else log.rate
@@ -648,7 +648,7 @@ def _with_pose_rows(cal: Calibration, found: PoseSet, log: Log) -> Calibration:
         if i in dropped:
             row["rejected"] = f"{dropped[i].sensor}: {dropped[i].reason}"
         rows.append(row)
-    provenance: dict[str, Any] = {"log": log.path, "columns": log.used}
+    provenance: dict[str, object] = {"log": log.path, "columns": log.used}
     if log.device is not None:  # the log names its device: fieldcal store add needs no --device
         provenance["device"] = log.device
     if found.rate is not None:  # the sample rate: noise densities (Kalibr) need it

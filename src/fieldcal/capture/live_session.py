@@ -39,7 +39,7 @@ from ..logs.pose_finding import PoseSet
 from ..logs.stream import DROPPED_REASONS, LineParser
 from ..methods import get as get_method
 from ..methods.continuous import MIN_SECONDS
-from ..methods.continuous.trajectory import raw_motion
+from ..methods.continuous.trajectory import RawMotion, raw_motion
 from ..output.report import write_report
 from ..pipeline import LogCalibration, LogSettings, run_log
 from ..planning.next_pose import (
@@ -201,7 +201,7 @@ class CaptureSession:
         self._rate: float | None = None
         self._advised: str | None = None
         self._layout_said = False
-        self.motion: dict[str, Any] | None = None  # --poses continuous: the motion so far
+        self.motion: RawMotion | None = None  # --poses continuous: the motion so far
         self._fitted_seconds = -math.inf
 
     @property

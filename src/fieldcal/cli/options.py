@@ -89,7 +89,7 @@ class Number(NumberBase):
         return cls(valid.low, valid.high, low_open=valid.low_open)
 
     def convert(
-        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+        self, value: object, param: click.Parameter | None, ctx: click.Context | None
     ) -> float:
         try:
             return self.range.check(value)
@@ -111,7 +111,7 @@ class FieldStrength(Number):
     name = "number|wmm"
 
     def convert(  # type: ignore[override]  # a number or the model's keyword
-        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+        self, value: object, param: click.Parameter | None, ctx: click.Context | None
     ) -> float | str:
         if isinstance(value, float):
             return super().convert(value, param, ctx)

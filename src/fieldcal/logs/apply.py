@@ -230,7 +230,7 @@ def _check_source(src: Path, decimal: str | None) -> None:
 
 
 # ----------------------------------------------------------------------------- tables
-def _read_npz(src: Path) -> tuple[dict[str, NDArray[Any]], bool]:
+def _read_npz(src: Path) -> tuple[dict[str, NDArray[np.generic]], bool]:
     """Every array of an ``.npz`` as stored, and whether the archive was compressed."""
     try:
         with zipfile.ZipFile(src) as archive:
@@ -243,7 +243,7 @@ def _read_npz(src: Path) -> tuple[dict[str, NDArray[Any]], bool]:
 
 
 def _parquet_columns(src: Path, table: Any) -> Table:
-    columns: dict[str, NDArray[Any]] = {}
+    columns: dict[str, NDArray[np.generic]] = {}
     for name in table.schema.names:
         values = np.asarray(table.column(name).to_numpy(zero_copy_only=False))
         if values.dtype.kind == "O":
@@ -276,7 +276,7 @@ def _apply_table(
     """The calibrated columns through a table read whole (``table``: one already read);
     ``drive`` takes the magnetometer's interference term off with each row's current."""
     fmt_in, fmt_out = output_format(src), output_format(dst)
-    arrays: dict[str, NDArray[Any]] = {}
+    arrays: dict[str, NDArray[np.generic]] = {}
     compressed = False
     arrow: Any = None
     if table is not None:
@@ -356,7 +356,7 @@ def _apply_table(
     return reported
 
 
-def _sensor_array(arrays: dict[str, NDArray[Any]], cols: list[str]) -> str | None:
+def _sensor_array(arrays: dict[str, NDArray[np.generic]], cols: list[str]) -> str | None:
     """The ``(n, 3)`` array ``cols`` were split from (``accel`` for ``accel_x..z``), if any."""
     key = cols[0][:-2]
     whole = arrays.get(key)
@@ -365,7 +365,7 @@ def _sensor_array(arrays: dict[str, NDArray[Any]], cols: list[str]) -> str | Non
     return key if cols == [f"{key}_{axis}" for axis in "xyz"] else None
 
 
-def _only_columns(src: Path, arrays: dict[str, NDArray[Any]]) -> None:
+def _only_columns(src: Path, arrays: dict[str, NDArray[np.generic]]) -> None:
     """Refuse arrays a table cannot hold (rather than leaving them out of the output)."""
     for key, array in arrays.items():
         if not (array.ndim == 1 or (array.ndim == 2 and array.shape[1] == 3)):
@@ -375,7 +375,7 @@ def _only_columns(src: Path, arrays: dict[str, NDArray[Any]]) -> None:
             )
 
 
-def _write_npz(path: Path, arrays: dict[str, NDArray[Any]], compressed: bool) -> None:
+def _write_npz(path: Path, arrays: dict[str, NDArray[np.generic]], compressed: bool) -> None:
     """``np.savez`` by hand: any key (``np.savez`` reserves ``file``), no pickles."""
     mode = zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED
     with zipfile.ZipFile(path, "w", compression=mode, allowZip64=True) as archive:

@@ -477,7 +477,7 @@ def _sensor_arrays(table: Table, used: dict[str, list[str]]) -> dict[str, Array]
 
 def _labels(
     table: Table, used: dict[str, list[str]], index: NDArray[np.int64]
-) -> dict[str, NDArray[Any]]:
+) -> dict[str, NDArray[np.generic]]:
     """The text columns no role took (a shot name, a device), in the rows kept."""
     taken = [c for cols in used.values() for c in cols]
     return {

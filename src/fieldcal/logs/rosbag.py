@@ -366,7 +366,7 @@ def _choose(
 # Decoding
 
 
-def _gather(buf: NDArray[np.uint8], at: Ints, count: int, dtype: str) -> NDArray[Any]:
+def _gather(buf: NDArray[np.uint8], at: Ints, count: int, dtype: str) -> NDArray[np.generic]:
     """``count`` values of ``dtype`` at byte offsets ``at`` of ``buf``, one row per offset
     (unaligned reads: the bytes are gathered, then viewed)."""
     size = np.dtype(dtype).itemsize

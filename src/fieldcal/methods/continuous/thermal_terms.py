@@ -20,7 +20,7 @@ Meketon & Schmeiser 1984, not the samples').
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,12 +34,25 @@ from .model import TEMP_SENSORS, Data, State
 from .solver import Weights, levenberg_marquardt
 from .uncertainty import MIN_BATCHES, sandwich
 
-__all__ = ["choose_orders", "models", "temperature_record", "with_order"]
+__all__ = ["OrderTest", "choose_orders", "models", "temperature_record", "with_order"]
 
 Array = NDArray[np.float64]
 
 
-def temperature_record(temperature: Array) -> tuple[Array, dict[str, Any]]:
+class OrderTest(TypedDict):
+    """One order tried by :func:`choose_orders`: the Wald F statistic of ``sensor``'s
+    ``order``-th coefficients, its denominator's degrees of freedom, its p-value and whether
+    the order was kept (one entry of ``cal.options["temperature"]["tests"]``)."""
+
+    sensor: str
+    order: int
+    F: float
+    dof: float
+    p: float
+    kept: bool
+
+
+def temperature_record(temperature: Array) -> tuple[Array, dict[str, object]]:
     """The samples' temperatures checked: ``T_j − T_ref`` and the provenance for
     ``cal.options["temperature"]`` (reference, span, allowed order by the span rule, the
     criterion, and the refusal when the span is too small)."""
@@ -52,7 +65,7 @@ def temperature_record(temperature: Array) -> tuple[Array, dict[str, Any]]:
         )
     poses = PoseTemperature(t)
     low, high = (float(x) for x in poses.span)
-    record: dict[str, Any] = {
+    record: dict[str, object] = {
         "reference_c": poses.reference,
         "span_c": [low, high],
         "allowed_order": allowed_order(poses),
@@ -89,7 +102,7 @@ def _wald(state: State, data: Data, w: Weights, sensor: str, batch: int) -> floa
 
 def choose_orders(
     state: State, data: Data, w: Weights, allowed: int, batch: int, max_iter: int, tol: float
-) -> tuple[State, list[dict[str, Any]]]:
+) -> tuple[State, list[OrderTest]]:
     """Forward selection of each sensor's order (see the module docstring).
 
     Parameters
@@ -109,17 +122,16 @@ def choose_orders(
 
     Returns
     -------
-    State, list of dict
-        The optimum with the orders kept, and one entry per order tried (``sensor``,
-        ``order``, ``F``, ``dof``, ``p``, ``kept``).
+    State, list of OrderTest
+        The optimum with the orders kept, and one entry per order tried.
     """
     n = len(data.time)
     # the sandwich's long-run covariance rests on about n / b independent batches: its
     # degrees of freedom, not the samples', are the test's denominator's
     b = int(min(max(batch, 1), max(n // MIN_BATCHES, 1)))
-    tests: list[dict[str, Any]] = []
+    tests: list[OrderTest] = []
     while True:
-        best: tuple[float, State, dict[str, Any]] | None = None
+        best: tuple[float, State, OrderTest] | None = None
         # overlapping batch means: about 3/2 the non-overlapping batches' degrees of freedom
         nu = 1.5 * (n // b - 1)  # Hotelling: T²(ν − 2)/(3ν) ~ F(3, ν − 2)
         dof = nu - 2
@@ -132,7 +144,7 @@ def choose_orders(
             )
             F = _wald(trial, data, w, sensor, batch) * dof / nu
             p = float(fdtrc(3, dof, F))
-            test: dict[str, Any] = {"sensor": sensor, "order": k, "F": F, "dof": dof, "p": p}
+            test = OrderTest(sensor=sensor, order=k, F=F, dof=dof, p=p, kept=False)
             tests.append(test)
             if p < ALPHA and (best is None or p < best[0]):
                 best = (p, trial, test)
@@ -140,8 +152,6 @@ def choose_orders(
             break
         _, state, test = best
         test["kept"] = True
-    for test in tests:
-        test.setdefault("kept", False)
     return state, tests
 
 

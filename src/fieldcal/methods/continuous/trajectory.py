@@ -11,7 +11,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,7 @@ __all__ = [
     "COVERAGE_DEG",
     "DIRECTIONS",
     "DISTURBED",
+    "RawMotion",
     "coverage",
     "downweighted",
     "raw_motion",
@@ -31,6 +32,17 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+
+
+class RawMotion(TypedDict):
+    """:func:`raw_motion`'s account of a log's motion before any calibration."""
+
+    seconds: float
+    gravity_coverage: float
+    visited: Array
+    turned_deg: dict[str, float]
+    advice: str | None
+
 
 DIRECTIONS = 64
 COVERAGE_DEG = 25.0
@@ -65,7 +77,7 @@ def coverage(rotations: Array) -> float:
     return len(visited(rotations @ GRAVITY)) / DIRECTIONS
 
 
-def raw_motion(time: Array, accel: Array, gyro: Array) -> dict[str, Any]:
+def raw_motion(time: Array, accel: Array, gyro: Array) -> RawMotion:
     """The motion of a log so far from its raw readings, before any calibration (a live
     capture's coverage): ``seconds``, ``gravity_coverage`` (of the raw accelerometer's
     directions, :func:`visited`), ``visited`` (those directions, rows), ``turned_deg`` (the
@@ -81,18 +93,18 @@ def raw_motion(time: Array, accel: Array, gyro: Array) -> dict[str, Any]:
     )
     up = np.asarray(accel, dtype=float)
     seen = visited(up)
-    return {
-        "seconds": float(t[-1] - t[0]) if len(t) else 0.0,
-        "gravity_coverage": len(seen) / DIRECTIONS,
-        "visited": seen,
-        "turned_deg": {axis: float(v) for axis, v in zip("xyz", turned, strict=True)},
-        "advice": motion_advice(up, turned) if len(up) else None,
-    }
+    return RawMotion(
+        seconds=float(t[-1] - t[0]) if len(t) else 0.0,
+        gravity_coverage=len(seen) / DIRECTIONS,
+        visited=seen,
+        turned_deg={axis: float(v) for axis, v in zip("xyz", turned, strict=True)},
+        advice=motion_advice(up, turned) if len(up) else None,
+    )
 
 
 def summary(
     time: Array, rotations: Array, rates: Array, body_accel: Array, gravity: float | None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[dict[str, Any], dict[str, float]]:
     """``(trajectory, motion)`` dictionaries (module docstring); ``rates`` (n − 1, 3) rad/s
     over the intervals, ``body_accel`` (n, 3) in units of |g|."""
     dt = np.diff(time)
@@ -105,7 +117,7 @@ def summary(
     }
     norm = np.linalg.norm(rates, axis=1)
     rms_acc = float(np.sqrt(np.mean(np.sum(body_accel**2, axis=1))))
-    motion: dict[str, Any] = {
+    motion: dict[str, float] = {
         "body_accel_rms_g": rms_acc,
         "angular_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(norm**2)))),
         "angular_rate_max_deg_s": float(np.degrees(np.max(norm))) if len(norm) else 0.0,
@@ -117,11 +129,11 @@ def summary(
 
 def downweighted(
     per_stretch: Array, length: int, time: Array, body_accel: Array, rows: NDArray[np.int_]
-) -> list[dict[str, Any]]:
+) -> list[dict[str, float | str]]:
     """The disturbed stretches (merged runs), each with rows, seconds and a reason."""
     quiet = float(np.quantile(per_stretch, 0.1))
     flagged = per_stretch > DISTURBED * quiet
-    out: list[dict[str, Any]] = []
+    out: list[dict[str, float | str]] = []
     n = len(time)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged.astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=True):
