@@ -6,7 +6,10 @@ normal-equation build, one batched Schur reduction (over B and the N pose blocks
 step and one residual evaluation per round for every problem still running. Each problem keeps
 its own λ, ν, acceptance, stopping tests and iteration count, exactly as
 :func:`.levenberg.levenberg_marquardt` keeps them; a problem that stops is left out of the
-following rounds. The stacked model (:mod:`.stacked`) and the reductions here are computed
+following rounds. The decisions are not copied: each problem carries the single solver's own
+:class:`.levenberg.Nielsen` schedule (the shared loop's :class:`.marquardt.Schedule`), asked
+for its step's acceptance, λ and stopping exactly as :func:`.marquardt.minimise` asks it. The
+stacked model (:mod:`.stacked`) and the reductions here are computed
 with the same numpy and LAPACK calls per problem as the single solver's, and the scalar
 decisions with the same IEEE operations (λ's update with Python's ``pow``, which numpy's
 ``power`` does not always equal), so each problem's result is the single solver's: bit for
@@ -30,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .levenberg import Result, damped_inverse, gram, predicted, schur
+from .levenberg import Nielsen, Result, damped_inverse, gram, predicted, schur
 from .pose_model import Problem, State
 from .stacked import (
     Stack,
@@ -135,16 +138,13 @@ class _Run:
     e: Array
     cost: Array
     ne: _Normal
-    lam: Array
-    nu: Array
-    last_rho: Array
+    #: Each problem's damping and stopping rules: the single solver's :class:`.levenberg.
+    #: Nielsen` schedule itself, one per problem (the loop is batched, the decisions are not).
+    rules: list[Nielsen]
     it: NDArray[np.int64]
     converged: NDArray[np.bool_]
     moved: NDArray[np.bool_]
     max_iter: NDArray[np.int64]
-    tol: Array
-    has_km: NDArray[np.bool_]
-    km: Array
 
     def keep(self, idx: Index) -> _Run:
         """The rows ``idx`` only."""
@@ -155,17 +155,16 @@ class _Run:
             self.e[idx],
             self.cost[idx],
             self.ne.take(idx),
-            self.lam[idx],
-            self.nu[idx],
-            self.last_rho[idx],
+            [self.rules[i] for i in idx.tolist()],
             self.it[idx],
             self.converged[idx],
             self.moved[idx],
             self.max_iter[idx],
-            self.tol[idx],
-            self.has_km[idx],
-            self.km[idx],
         )
+
+    def lam(self) -> Array:
+        """The running problems' λ."""
+        return np.array([rule.lam for rule in self.rules])
 
 
 def lockstep(requests: Sequence[Request]) -> list[Result | Exception]:
@@ -197,16 +196,11 @@ def lockstep(requests: Sequence[Request]) -> list[Result | Exception]:
         e,
         _costs(e),
         _normal(sp, st, e),
-        np.array([float(r.lam) for r in requests]),
-        np.full(B, 2.0),
-        np.zeros(B),
+        [Nielsen(float(r.lam), float(r.tol), r.known_minimum) for r in requests],
         np.zeros(B, dtype=np.int64),
         np.zeros(B, dtype=bool),
         np.zeros(B, dtype=bool),
         np.array([int(r.max_iter) for r in requests]),
-        np.array([float(r.tol) for r in requests]),
-        np.array([r.known_minimum is not None for r in requests]),
-        np.array([np.nan if r.known_minimum is None else r.known_minimum for r in requests]),
     )
     stopped = run.max_iter <= 0
     while True:
@@ -236,24 +230,20 @@ def _result(run: _Run, j: int, start: State) -> Result | Exception:
 
 def _round(run: _Run) -> tuple[NDArray[np.bool_], list[int]]:
     """One iteration of :func:`.levenberg.levenberg_marquardt`'s loop for every running
-    problem: which of them stopped, and which raised (singular)."""
+    problem, each deciding by its own :class:`.levenberg.Nielsen` rules: which of them
+    stopped, and which raised (singular)."""
     run.it += 1
-    dg, dp, pred, bad = _steps(run.ne, run.lam)
+    dg, dp, pred, bad = _steps(run.ne, run.lam())
     done = np.zeros(len(run.ids), dtype=bool)
     done[bad] = True
     cost = run.cost
-    with np.errstate(all="ignore"):
-        known = (
-            run.has_km
-            & (np.abs(run.last_rho - 1.0) < 0.1)
-            & (np.abs(cost - pred - run.km) <= 1e-6 * (1.0 + run.km))
-        )
-    known &= ~done
-    run.converged[known] = True
-    done |= known
+    for j in np.flatnonzero(~done).tolist():
+        if run.rules[j].done_before_trying(float(cost[j]), float(pred[j])):
+            run.converged[j] = done[j] = True
     finite = np.isfinite(dg).all(axis=1) & np.isfinite(dp.reshape(len(dp), -1)).all(axis=1)
     blown = ~done & ~np.isfinite(pred) & ~finite
-    run.lam[blown] *= 10.0
+    for j in np.flatnonzero(blown).tolist():
+        run.rules[j].unusable()  # Nielsen's: λ raised, the loop goes on
     go = np.flatnonzero(~done & ~blown)
     if not go.size:
         return done, bad
@@ -267,9 +257,19 @@ def _round(run: _Run) -> tuple[NDArray[np.bool_], list[int]]:
     pred_go, cost_go = _pick(pred, go), _pick(cost, go).copy()
     with np.errstate(all="ignore"):
         gain = cost_go - cost_new
-        rho = np.where(pred_go > 0, gain / np.where(pred_go > 0, pred_go, 1.0), -1.0)
-    accept = (rho > 0) & np.isfinite(cost_new)
-    a = np.flatnonzero(accept)
+    taken: list[int] = []
+    for k, j in enumerate(go.tolist()):
+        rule = run.rules[j]
+        rho = rule.ratio(float(gain[k]), float(pred_go[k]))
+        if rule.accepts(float(gain[k]), rho, float(cost_new[k]), float(cost_go[k])):
+            taken.append(k)
+            if rule.accepted(float(gain[k]), rho, float(cost_new[k])):
+                run.converged[j] = done[j] = True
+        else:
+            stop = rule.refused(float(pred_go[k]), float(cost_go[k]))
+            if stop is not None:
+                run.converged[j], done[j] = stop, True
+    a = np.array(taken, dtype=np.intp)
     if a.size:
         ia = go[a]
         if ia.size == len(run.ids):
@@ -277,32 +277,11 @@ def _round(run: _Run) -> tuple[NDArray[np.bool_], list[int]]:
         else:
             run.st.put(ia, trial.take(a))
             run.e[ia] = e_new[a]
-        run.last_rho[ia] = rho[a]
         run.moved[ia] = True
-        # Python's pow, as the single solver (numpy's power differs in the last bit)
-        factor = [max(1.0 / 3.0, 1.0 - (2.0 * r - 1.0) ** 3) for r in rho[a].tolist()]
-        run.lam[ia] *= np.array(factor)
-        run.nu[ia] = 2.0
-        c = cost_new[a]
-        run.cost[ia] = c
-        quadratic = (np.abs(rho[a] - 1.0) < 0.1) & (gain[a] <= 1e-8 * c)
-        stop = (gain[a] <= run.tol[ia] * (1.0 + c)) | quadratic | (c < 1e-300)
-        run.converged[ia[stop]] = True
-        done[ia[stop]] = True
-        more = ia[~stop]
+        run.cost[ia] = cost_new[a]
+        more = ia[~done[ia]]
         if more.size == len(run.ids):
             run.ne = _normal(run.sp, run.st, run.e)
         elif more.size:
             run.ne.put(more, _normal(run.sp.take(more), run.st.take(more), run.e[more]))
-    r = np.flatnonzero(~accept)
-    if r.size:
-        ir = go[r]
-        c = cost_go[r]
-        nothing = (pred_go[r] <= run.tol[ir] * 1e-3 * (1.0 + c)) & (run.lam[ir] < 1e-3)
-        run.converged[ir[nothing]] = True
-        done[ir[nothing]] = True
-        grow = ir[~nothing]
-        run.lam[grow] *= run.nu[grow]
-        run.nu[grow] *= 2.0
-        done[grow[run.lam[grow] > 1e16]] = True
     return done, bad
