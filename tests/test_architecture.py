@@ -148,10 +148,7 @@ MODULE_LINES, FUNCTION_LINES = 800, 100
 
 #: Functions over :data:`FUNCTION_LINES` while other branches shorten them (the lead removes
 #: each entry at merge): ``path:function`` -> whose it is.
-OVER_FOR_NOW = {
-    # the hand-held simulator, shortened on the branch that models the hand's translation
-    "simulation/handheld.py:simulate_handheld": "broad",
-}
+OVER_FOR_NOW: dict[str, str] = {}
 
 
 def test_modules_and_functions_fit_in_a_head():

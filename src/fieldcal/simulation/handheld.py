@@ -494,6 +494,27 @@ def simulate_handheld(
         "gyro_sampling": gyro_sampling,
         "internal_rate": rate * fine_k,
     }
+    motion = (R, position, velocity, acceleration, omega, omega_dot, omega_read, f)
+    still = envelope(t)[0] < 1e-12
+    scales = (float(rate), float(gravity), float(field_strength))
+    return _handheld_log(columns, truth, s, (dip, r, U), motion, still, scales, options)
+
+
+def _handheld_log(
+    columns: dict[str, Array],
+    truth: Calibration,
+    s: dict[str, Array],
+    frame: tuple[float, Array, Array],
+    motion: tuple[Array, ...],
+    still: NDArray[np.bool_],
+    scales: tuple[float, float, float],
+    options: dict[str, object],
+) -> HandheldLog:
+    """The log and its truth: the sensors ``s``, the dip, lever arm and gauge rotation
+    (``frame``), the motion (rotations, position, velocity, acceleration, rates, their
+    derivative and readings, specific force), the still rows, the rate, ``|g|`` and ``|h|``."""
+    dip, r, U = frame
+    R, position, velocity, acceleration, omega, omega_dot, omega_read, f = motion
     return HandheldLog(
         columns=columns,
         truth=truth,
@@ -514,9 +535,9 @@ def simulate_handheld(
         omega_dot=omega_dot,
         omega_read=omega_read,
         specific_force=f,
-        rests=_rest_rows(envelope(t)[0] < 1e-12),
-        rate=float(rate),
-        gravity=float(gravity),
-        field_strength=float(field_strength),
+        rests=_rest_rows(still),
+        rate=scales[0],
+        gravity=scales[1],
+        field_strength=scales[2],
         options=options,
     )
