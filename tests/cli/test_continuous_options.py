@@ -45,6 +45,17 @@ def test_sampling_given_and_recorded(log_csv, tmp_path):
     assert cal.options["hold"] == "previous"
 
 
+def test_summary_speaks_of_the_motion_not_of_poses(log_csv, tmp_path):
+    """A continuous fit's summary names where its gyroscope noise came from and prints no
+    pose-level noise (it has no pose means)."""
+    result = run("calibrate", log_csv, "--poses", "continuous", "-o", tmp_path / "c.json", ok=False)
+    assert result.exit_code in (0, 1, 3), result.output
+    assert "pose-level noise" not in result.output
+    assert "from the still poses" not in result.output
+    cal = _cal(tmp_path / "c.json")
+    assert cal.gyro is not None and cal.gyro.noise_source in result.output
+
+
 def test_hold_gyro_gain_at_the_prior(log_csv, tmp_path):
     first, second = tmp_path / "a.json", tmp_path / "b.json"
     run(

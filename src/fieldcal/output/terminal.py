@@ -88,11 +88,19 @@ def _sensor_table(name: str, sensor: SensorCalibration, v: str = "v") -> Table:
     return table
 
 
-def _print_sensor(console: Console, name: str, sensor: SensorCalibration) -> None:
+def _print_sensor(
+    console: Console, name: str, sensor: SensorCalibration, poses: bool = True
+) -> None:
+    """A field sensor's table, its noise and (``poses``: a pose calibration) the pose-level
+    noise, its temperature terms."""
     console.print(_sensor_table(name, sensor))
     noise = ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(sensor.noise_cov)))
     source = _SOURCES.get(sensor.noise_source, sensor.noise_source)
     _say(console, f"  noise std per axis (one raw sample): {noise} — {source}")
+    if not poses:  # a continuous fit has no pose means, so no pose-level noise
+        for line in temperature_lines(sensor):
+            _say(console, line)
+        return
     q, se = sensor.pose_noise_std, sensor.pose_noise_std_se
     how = "estimated" if se is not None else "not estimated (given or none)"
     _say(
@@ -136,7 +144,8 @@ def _print_gyro(console: Console, cal: Calibration) -> None:
     assert gyro is not None
     console.print(_sensor_table("gyroscope", gyro, "ω (rad/s)"))
     noise = ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(gyro.noise_cov)))
-    _say(console, f"  noise std per axis (one raw sample): {noise} — from the still poses")
+    source = gyro.noise_source if cal.method == "continuous" else "from the still poses"
+    _say(console, f"  noise std per axis (one raw sample): {noise} — {source}")
     for line in temperature_lines(gyro):
         _say(console, line)
     info = cal.options.get("gyro", {})
@@ -310,7 +319,7 @@ def print_summary(
     for name, label in _SENSOR_NAMES:
         sensor = getattr(cal, name)
         if sensor is not None:
-            _print_sensor(console, label, sensor)
+            _print_sensor(console, label, sensor, poses=cal.method != "continuous")
     if cal.gyro is not None:
         _print_gyro(console, cal)
     if cal.dip_deg is not None:
