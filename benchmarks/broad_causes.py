@@ -76,7 +76,7 @@ def patched(mag_factor: float, moving: float, batch: float, allow: bool = False)
 
     def weights(*args: Any, **kwargs: Any) -> Any:
         if allow:
-            args = (*args[:5], True)
+            args = (*args[:5], True, *args[6:])
         w, levels = original(*args, **kwargs)
         w.mag = w.mag / mag_factor
         variance = 1.0 / w.accel

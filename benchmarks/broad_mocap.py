@@ -51,6 +51,11 @@ the vendor's calibrated m/s², rad/s and µT).
     python benchmarks/broad_mocap.py                 # all four trials, splits, writes the docs
     python benchmarks/broad_mocap.py --trials 01 06 --no-split --no-docs
     python benchmarks/broad_mocap.py --step 3        # every third sample (95 Hz), faster
+    python benchmarks/broad_mocap.py --allowances    # the continuous fits with Eq. C6a–C6b
+
+``--allowances``: the continuous estimator's weights for what its model leaves out
+(``fit_continuous(allowances=True)``, not reachable from ``calibrate_log``) switched on by
+wrapping its rounds; ``cal.options["allowances"]`` records it.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,6 +82,7 @@ from fieldcal.geometry.rotations import (
     rotation_angle_deg,
     wahba,
 )
+from fieldcal.methods import continuous
 
 Array = NDArray[np.float64]
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "broad"
@@ -175,12 +182,23 @@ def _rms(x: Array) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def calibrate(cols: dict[str, Array]) -> fieldcal.Calibration | str:
-    """``fieldcal.calibrate_log`` in its default mode; the refusal's message if it refuses."""
+def calibrate(cols: dict[str, Array], allowances: bool = False) -> fieldcal.Calibration | str:
+    """``fieldcal.calibrate_log`` in its default mode (with ``allowances``, the continuous
+    fit's Eq. C6a–C6b on); the refusal's message if it refuses."""
+    original = continuous.run_rounds
+
+    def with_allowances(state: Any, plan: Any, prior: Any) -> Any:
+        plan.options.allowances = True
+        return original(state, plan, prior)
+
+    if allowances:
+        continuous.run_rounds = with_allowances  # type: ignore[assignment]
     try:
         return fieldcal.calibrate_log(cols)
     except InputError as exc:
         return f"refused: {exc}"
+    finally:
+        continuous.run_rounds = original  # type: ignore[assignment]
 
 
 def values(cal: fieldcal.Calibration) -> dict[str, tuple[float, float]]:
@@ -363,11 +381,11 @@ def report(
     return lines
 
 
-def split_halves(cols: dict[str, Array]) -> dict[str, object]:
+def split_halves(cols: dict[str, Array], allowances: bool = False) -> dict[str, object]:
     half = len(cols["t"]) // 2
     fits = []
     for part in (slice(0, half), slice(half, None)):
-        fits.append(calibrate({k: v[part] for k, v in cols.items()}))
+        fits.append(calibrate({k: v[part] for k, v in cols.items()}, allowances))
     labels = [f if isinstance(f, str) else _mode(f) for f in fits]
     out: dict[str, object] = {"halves": "; ".join(labels)}
     if all(not isinstance(f, str) for f in fits):
@@ -381,15 +399,19 @@ def main() -> None:
     parser.add_argument("--step", type=int, default=1, help="Keep every step-th sample.")
     parser.add_argument("--no-split", action="store_true", help="Skip the split halves.")
     parser.add_argument("--no-docs", action="store_true")
+    parser.add_argument(
+        "--allowances", action="store_true", help="The continuous fits with Eq. C6a-C6b."
+    )
     args = parser.parse_args()
     command = (
         "python benchmarks/broad_mocap.py"
         + "".join(
             f" --{k.replace('_', '-')} {' '.join(v) if isinstance(v, list) else v}"
             for k, v in vars(args).items()
-            if k not in ("no_docs", "no_split") and v != parser.get_default(k)
+            if k not in ("no_docs", "no_split", "allowances") and v != parser.get_default(k)
         )
         + (" --no-split" if args.no_split else "")
+        + (" --allowances" if args.allowances else "")
     )
     rows, fits, splits, cpu = [], {}, {}, {}
     with pin_blas_threads():
@@ -400,7 +422,7 @@ def main() -> None:
                 continue
             cols, quat = loaded
             start = time.process_time()
-            cal = calibrate(cols)
+            cal = calibrate(cols, args.allowances)
             cpu[trial] = time.process_time() - start
             if isinstance(cal, str):
                 print(f"trial {trial}: {cal}", file=sys.stderr)
@@ -409,7 +431,7 @@ def main() -> None:
             rows.append(trial_row(trial, cal, cols, quat))
             print(f"trial {trial}: {_mode(cal)}, {cpu[trial]:.1f} s CPU", file=sys.stderr)
             if not args.no_split:
-                splits[trial] = split_halves(cols)
+                splits[trial] = split_halves(cols, args.allowances)
     pair = agreement(fits["01"], fits["04"]) if {"01", "04"} <= fits.keys() else None
     fast = fast_trial(fits["06"]) if "06" in fits else None
     lines = ["## BROAD against motion capture (issue 33)", "", stamp(command), ""]

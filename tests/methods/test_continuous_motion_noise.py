@@ -10,6 +10,7 @@ from fieldcal.methods.continuous.motion_noise import (
     FIELD_DIRECTION_DEG,
     field_direction_variance,
     once_per_stretch,
+    sample_excess,
 )
 from fieldcal.methods.continuous.weights import stretch_variance
 
@@ -71,3 +72,24 @@ def test_field_direction_allowance():
     moved = v + np.cross(turns, v)  # first order; the turn about v itself moves nothing
     per_axis = np.mean(np.sum((moved - v) ** 2, axis=1)) / 3.0
     assert abs(per_axis - (2.0 / 3.0) * sigma**2 / 2.0 * 1.0) < 0.05 * per_axis
+
+
+def test_the_excess_is_read_from_the_samples():
+    """C6a at the knots (:func:`sample_excess`): a stretch whose samples carry a fast
+    acceleration (alternating ±c, which a knot's window mean of an even number of samples
+    cancels) has the excess |c|²/3 read from the samples, whole; the white stretches none."""
+    rng = np.random.default_rng(11)
+    k, sigma, step = 120, 0.01, 6
+    sq_noise = np.sum((sigma * rng.standard_normal((40 * k, 3))) ** 2, axis=1) / 3.0
+    residual = sigma * rng.standard_normal((40 * k, 3))
+    c = np.array([0.05, -0.03, 0.04])
+    residual[5 * k : 6 * k] += np.where(np.arange(k) % 2 == 0, 1.0, -1.0)[:, None] * c
+    excess = sample_excess(np.sum(residual**2, axis=1) / 3.0, k)
+    assert len(excess) == 40
+    assert abs(excess[5] - np.sum(c**2) / 3.0) < 0.1 * np.sum(c**2) / 3.0
+    assert np.count_nonzero(np.delete(excess, 5)) <= 1  # the others: chance at most
+    # the knots' own means do not see it: their stretch's variance stays near the white one's
+    means = residual.reshape(-1, step, 3).mean(axis=1)
+    per_knot = np.mean(np.sum(means**2, axis=1).reshape(40, k // step), axis=1) / 3.0
+    assert per_knot[5] < 3.0 * np.median(per_knot)
+    assert np.all(sample_excess(sq_noise, k) < 3.0 * CHANCE * sigma**2 * np.sqrt(2.0 / (3 * k)))

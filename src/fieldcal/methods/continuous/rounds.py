@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from .covariates import Inputs
 from .knots import reduce, sample_rotations
 from .model import Data, State, residuals
-from .motion_noise import field_direction_variance, once_per_stretch
+from .motion_noise import field_direction_variance, once_per_stretch, sample_excess
 from .solver import Prior, Weights, levenberg_marquardt, state_factors
 from .uncertainty import BATCH, kept_shares
 from .weights import STRETCH, gyro_rate_variance, stretch_variance
@@ -53,13 +53,20 @@ PROGRESS_SECONDS = 0.5
 
 
 def weights_at(
-    state: State, knots: Data, length: int, rate_var: float, kept: Array, allow: bool = False
+    state: State,
+    knots: Data,
+    length: int,
+    rate_var: float,
+    kept: Array,
+    allow: bool = False,
+    samples: tuple[Data, int] | None = None,
 ) -> tuple[Weights, dict[str, Array]]:
     """Inverse variances (Eq. C6): each field sensor's per stretch from its residuals at the
     knots, divided by the share of its errors the fit keeps (``kept``,
     :func:`.uncertainty.kept_shares`); the gyroscope's factor between knots from ``rate_var``
     (rad²/s² per axis) times its intervals' ``Σ Δt²``; with ``allow``, the allowances for
-    what the model leaves out (Eq. C6a–C6b, :mod:`.motion_noise`)."""
+    what the model leaves out (Eq. C6a–C6b, :mod:`.motion_noise`); ``samples`` (the samples
+    and the knots' step) lets C6a read the excess from the samples' residuals."""
     ra, rm = residuals(state, knots)
     va, per_a = stretch_variance(ra / np.sqrt(kept[0]), length, 0.0)
     vm, per_m = stretch_variance(rm / np.sqrt(kept[1]), length, 0.0)
@@ -67,12 +74,25 @@ def weights_at(
     floor_m = max(1e-4 * float(np.median(per_m)), 1e-300)
     va, per_a = np.maximum(va, floor_a), np.maximum(per_a, floor_a)
     vm, per_m = np.maximum(vm, floor_m), np.maximum(per_m, floor_m)
-    if allow:  # what the model leaves out, counted as it is
+    if allow and samples is not None:  # C6a's excess as the samples show it, once per stretch
+        excess = _sample_excess(state, *samples, length, float(kept[0]))
+        va = va + length * np.repeat(excess, length)[: len(va)]
+    elif allow:  # what the model leaves out, counted as it is
         va = once_per_stretch(va, length)
+    if allow:
         vm = vm + field_direction_variance(knots.mag, state.mag_bias)
     assert knots.factors is not None
     w = Weights(1.0 / va, 1.0 / vm, 1.0 / (rate_var * knots.factors.dt2))
     return w, {"accel": per_a, "mag": per_m, "gyro": np.array([rate_var])}
+
+
+def _sample_excess(state: State, data: Data, step: int, length: int, kept: float) -> Array:
+    """Per stretch of ``length`` knots, the accelerometer's excess over its white noise in the
+    samples' residuals (:func:`.motion_noise.sample_excess`), each sample at its rotation from
+    the knots' and the gyroscope (:func:`.knots.sample_rotations`)."""
+    rotations = sample_rotations(data, state, step)
+    ra, _ = residuals(dataclasses.replace(state, rotations=rotations), data)
+    return sample_excess(np.sum(ra**2, axis=1) / (3.0 * kept), length * step)
 
 
 def plain_weights(state: State, knots: Data, w: Weights, length: int, rate_var: float) -> Weights:
@@ -183,7 +203,9 @@ def run_rounds(
     knots = reduce(data, state, plan.step * factor)
     length = max(1, round(plan.length / factor))
     allow = plan.options.allowances
-    w, levels = weights_at(state, knots, length, rate_var, np.ones(3), allow)
+    w, levels = weights_at(
+        state, knots, length, rate_var, np.ones(3), allow, (data, plan.step * factor)
+    )
     w.prior = prior
     total, rounds = 0, max(1, int(plan.options.rounds))
     kept = np.ones(3)
@@ -193,7 +215,7 @@ def run_rounds(
             state, factor, length = dataclasses.replace(state, rotations=rotations), 1, plan.length
         if r:  # the pre-integration and the windows' turns at the gyroscope found so far
             knots = reduce(data, state, plan.step)
-            w, levels = weights_at(state, knots, length, rate_var, kept, allow)
+            w, levels = weights_at(state, knots, length, rate_var, kept, allow, (data, plan.step))
             w.prior = prior
         if plan.progress is not None:
             plan.progress.round(r, rounds)
