@@ -185,10 +185,31 @@ def ordered_products(steps: NDArray[np.float64]) -> NDArray[np.float64]:
     """Chained rotations: ``c_i = S_i S_{i−1} … S_0`` for every ``i`` of ``steps`` (n, 3, 3),
     later steps on the left (a world → body rotation advanced step by step), by a log-depth
     (Hillis–Steele) scan of matrix products: ``log₂ n`` vectorised rounds instead of ``n``
-    Python-level products."""
+    Python-level products. A long chain is scanned in blocks of :data:`SCAN_BLOCK` (every
+    block's scan at once, then each block carried by the product of the blocks before it, a
+    scan of the blocks' last products): a third of the work of one scan over the chain."""
     c = np.array(steps, dtype=float)
+    n = len(c)
+    if n <= 4 * SCAN_BLOCK:
+        return _scan(c)
+    whole = n - n % SCAN_BLOCK
+    blocks = _scan(c[:whole].reshape(-1, SCAN_BLOCK, 3, 3), axis=1)
+    carry = ordered_products(blocks[:-1, -1])  # the blocks before each block, chained
+    blocks[1:] = blocks[1:] @ carry[:, None]
+    if whole < n:
+        c[whole:] = _scan(c[whole:]) @ c[whole - 1]
+    return c
+
+
+#: Rotations per block of :func:`ordered_products`' scan.
+SCAN_BLOCK = 32
+
+
+def _scan(c: NDArray[np.float64], axis: int = 0) -> NDArray[np.float64]:
+    """In place along ``axis`` (0 or 1): ``c_i ← c_i c_{i−1} … c_0`` (Hillis–Steele)."""
+    view = c if axis == 0 else np.moveaxis(c, 1, 0)
     d = 1
-    while d < len(c):
-        c[d:] = c[d:] @ c[:-d]
+    while d < len(view):
+        view[d:] = view[d:] @ view[:-d]
         d *= 2
     return c
