@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "exp_so3",
+    "eye_plus",
     "hat",
     "log_so3",
     "ordered_products",
@@ -77,9 +78,23 @@ def exp_so3(omega: NDArray[np.float64]) -> NDArray[np.float64]:
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    K = hat(omega)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return eye_plus(omega, a, b, theta2)
+
+
+def eye_plus(
+    omega: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    theta2: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``I + a [ω]× + b [ω]×²`` (..., 3, 3), with ``[ω]×² = ω ωᵀ − |ω|² I`` (``theta2``:
+    ``|ω|²``) as an outer product rather than a stacked 3×3 product."""
+    out = hat(omega) * a[..., None, None]
+    out += b[..., None, None] * (omega[..., :, None] * omega[..., None, :])
+    diagonal = 1.0 - b * theta2
+    for i in range(3):
+        out[..., i, i] += diagonal
+    return out
 
 
 def log_so3(R: NDArray[np.float64]) -> NDArray[np.float64]:
