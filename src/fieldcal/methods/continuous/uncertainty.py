@@ -53,7 +53,7 @@ from .model import (
     mag_of,
 )
 from .preintegration import GyroFactors
-from .solver import Normal, Weights, normal_equations, schur, state_factors
+from .solver import Normal, Weights, add_columns, normal_equations, schur, state_factors
 
 __all__ = [
     "BATCH",
@@ -196,10 +196,10 @@ def _pushes(
         (jac.mag, w.mag, rm, jac.cols["mag"]),
     ):
         wr = (r * weight[:, None])[:, None, :]
-        own[:, sl] += (wr @ block.params)[:, 0]
+        add_columns(own, sl, (wr @ block.params)[:, 0])
         push += (wr @ block.rotation)[:, 0]
     wr = (rg * w.gyro[:, None])[:, None, :]
-    own[:-1, jac.cols["gyro"]] += (wr @ jac.gyro.params)[:, 0]
+    add_columns(own[:-1], jac.cols["gyro"], (wr @ jac.gyro.params)[:, 0])
     return own, push, (wr @ jac.gyro.previous)[:, 0], wr[:, 0]
 
 
