@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from fieldcal.geometry.rotations import (
     exp_so3,
     log_so3,
+    ordered_products,
     project_to_so3,
     quaternion_to_matrix,
     random_rotations,
@@ -106,3 +107,15 @@ def test_wahba_of_parallel_directions_falls_back_to_the_svd():
             got = wahba_pair(b1, b2, r1, r2)
         want = wahba(np.stack([b1, b2], axis=1), np.broadcast_to(np.stack([r1, r2]), (5, 2, 3)))
         np.testing.assert_array_equal(got, want)
+
+
+def test_ordered_products_match_the_chain_one_step_at_a_time():
+    # long enough for the blocked scan (blocks, their carries, a ragged tail)
+    steps = exp_so3(np.random.default_rng(3).normal(scale=0.1, size=(5003, 3)))
+    chained = ordered_products(steps)
+    product = np.eye(3)
+    for i in range(len(steps)):
+        product = steps[i] @ product
+        if i in (0, 31, 32, 127, 128, 4991, 4992, 5002):
+            np.testing.assert_allclose(chained[i], product, atol=1e-12)
+    np.testing.assert_allclose(chained[-1], product, atol=1e-12)

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "exp_so3",
+    "eye_plus",
     "hat",
     "log_so3",
     "ordered_products",
@@ -56,12 +57,12 @@ def quaternion_to_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
 def hat(omega: NDArray[np.float64]) -> NDArray[np.float64]:
     """Skew-symmetric matrices (..., 3, 3) with ``hat(w) @ v == cross(w, v)``."""
     omega = np.asarray(omega, dtype=float)
-    x, y, z = np.moveaxis(omega, -1, 0)
-    zero = np.zeros_like(x)
-    return np.stack(
-        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
-        axis=-2,
-    )
+    out = np.zeros((*omega.shape, 3))  # filled in place: nested stacks cost a third more
+    x, y, z = omega[..., 0], omega[..., 1], omega[..., 2]
+    out[..., 0, 1], out[..., 0, 2] = -z, y
+    out[..., 1, 0], out[..., 1, 2] = z, -x
+    out[..., 2, 0], out[..., 2, 1] = -y, x
+    return out
 
 
 def exp_so3(omega: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -77,9 +78,23 @@ def exp_so3(omega: NDArray[np.float64]) -> NDArray[np.float64]:
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    K = hat(omega)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return eye_plus(omega, a, b, theta2)
+
+
+def eye_plus(
+    omega: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    theta2: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``I + a [ω]× + b [ω]×²`` (..., 3, 3), with ``[ω]×² = ω ωᵀ − |ω|² I`` (``theta2``:
+    ``|ω|²``) as an outer product rather than a stacked 3×3 product."""
+    out = hat(omega) * a[..., None, None]
+    out += b[..., None, None] * (omega[..., :, None] * omega[..., None, :])
+    diagonal = 1.0 - b * theta2
+    for i in range(3):
+        out[..., i, i] += diagonal
+    return out
 
 
 def log_so3(R: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -185,10 +200,31 @@ def ordered_products(steps: NDArray[np.float64]) -> NDArray[np.float64]:
     """Chained rotations: ``c_i = S_i S_{i−1} … S_0`` for every ``i`` of ``steps`` (n, 3, 3),
     later steps on the left (a world → body rotation advanced step by step), by a log-depth
     (Hillis–Steele) scan of matrix products: ``log₂ n`` vectorised rounds instead of ``n``
-    Python-level products."""
+    Python-level products. A long chain is scanned in blocks of :data:`SCAN_BLOCK` (every
+    block's scan at once, then each block carried by the product of the blocks before it, a
+    scan of the blocks' last products): a third of the work of one scan over the chain."""
     c = np.array(steps, dtype=float)
+    n = len(c)
+    if n <= 4 * SCAN_BLOCK:
+        return _scan(c)
+    whole = n - n % SCAN_BLOCK
+    blocks = _scan(c[:whole].reshape(-1, SCAN_BLOCK, 3, 3), axis=1)
+    carry = ordered_products(blocks[:-1, -1])  # the blocks before each block, chained
+    blocks[1:] = blocks[1:] @ carry[:, None]
+    if whole < n:
+        c[whole:] = _scan(c[whole:]) @ c[whole - 1]
+    return c
+
+
+#: Rotations per block of :func:`ordered_products`' scan.
+SCAN_BLOCK = 32
+
+
+def _scan(c: NDArray[np.float64], axis: int = 0) -> NDArray[np.float64]:
+    """In place along ``axis`` (0 or 1): ``c_i ← c_i c_{i−1} … c_0`` (Hillis–Steele)."""
+    view = c if axis == 0 else np.moveaxis(c, 1, 0)
     d = 1
-    while d < len(c):
-        c[d:] = c[d:] @ c[:-d]
+    while d < len(view):
+        view[d:] = view[d:] @ view[:-d]
         d *= 2
     return c

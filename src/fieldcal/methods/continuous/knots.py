@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ...geometry.rotations import exp_so3, hat
+from ...geometry.rotations import exp_so3
 from ...likelihood.temperature import MAX_ORDER
 from .model import Data, KnotFactors, State, powers
 from .preintegration import right_jacobian
@@ -124,6 +124,18 @@ def _phi(
     return (held - bias) @ Ginv.T * dt[:, None], dt, P
 
 
+def _turned_cross(back: Array, acc: Array) -> Array:
+    """``−B [e_c]× A`` for the three axes ``c`` (k, 3, 3, m), written out: ``[e_c]× A`` is
+    the cross product of ``e_c`` with each column of ``A`` (a stacked 3×3 matmul is slower)."""
+    out = np.empty((len(back), 3, 3, acc.shape[2]))
+    b0, b1, b2 = back[:, :, 0, None], back[:, :, 1, None], back[:, :, 2, None]
+    a0, a1, a2 = acc[:, None, 0], acc[:, None, 1], acc[:, None, 2]
+    out[:, 0] = b1 * a2 - b2 * a1
+    out[:, 1] = b2 * a0 - b0 * a2
+    out[:, 2] = b0 * a1 - b1 * a0
+    return out
+
+
 def _walk(
     data: Data, state: State, lo: int, knots: int, step: int, orders: int, jacobians: bool
 ) -> dict[str, Array]:
@@ -145,7 +157,6 @@ def _walk(
     acc = np.zeros((knots, 3, width)) if jacobians else None
     # ∂(M u)/∂θ = Σ_c u_c D_c, D_c = −⟨ΔR_i [e_c]× acc_i⟩ (module docstring)
     spread = np.zeros((knots, 3, 3, 12)) if jacobians else None
-    axes = hat(np.eye(3))
     P_g = None if P is None else _grid(P, knots, step)
     for p in range(step):
         ph = phi_g[:, p]
@@ -159,12 +170,13 @@ def _walk(
                 extra = Ab[:, :, None, :] * P_g[:, p, None, :, None]
                 acc[:, :, 12:] += extra.reshape(knots, 3, 3 * orders)
         if p + 1 < step:
-            inside = (p + 1 < count)[:, None, None]
+            # only a log's last window can be short: mask only when it is
+            inside = None if p + 1 < count[-1] else (p + 1 < count)[:, None, None]
             back = np.swapaxes(turn, 1, 2)
-            mean += np.where(inside, back, 0.0)
+            mean += back if inside is None else np.where(inside, back, 0.0)
             if spread is not None and acc is not None:
-                term = -((back[:, None] @ axes[None]) @ acc[:, None, :, :12])
-                spread += np.where(inside[:, None], term, 0.0)
+                term = _turned_cross(back, acc[:, :, :12])
+                spread += term if inside is None else np.where(inside[:, None], term, 0.0)
             if each is not None:
                 each[:, p + 1] = np.swapaxes(turn, 1, 2)
     out = {"mixing": mean / count[:, None, None], "turn": turn, "count": count}

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ...geometry.rotations import exp_so3, hat, log_so3
+from ...geometry.rotations import exp_so3, eye_plus, hat, log_so3
 
 __all__ = [
     "HOLDS",
@@ -49,10 +49,7 @@ def right_jacobian(phi: Array) -> Array:
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
     b = np.where(small, 1.0 / 6.0 - theta2 / 120.0, (safe - np.sin(safe)) / safe**3)
-    K = hat(phi)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    out: Array = eye - a[..., None, None] * K + b[..., None, None] * (K @ K)
-    return out
+    return eye_plus(phi, -a, b, theta2)
 
 
 def _log_near_identity(M: Array) -> Array:

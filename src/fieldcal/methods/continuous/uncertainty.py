@@ -53,7 +53,7 @@ from .model import (
     mag_of,
 )
 from .preintegration import GyroFactors
-from .solver import Normal, Weights, normal_equations, schur, state_factors
+from .solver import Normal, Weights, add_columns, normal_equations, schur, state_factors
 
 __all__ = [
     "BATCH",
@@ -196,10 +196,10 @@ def _pushes(
         (jac.mag, w.mag, rm, jac.cols["mag"]),
     ):
         wr = (r * weight[:, None])[:, None, :]
-        own[:, sl] += (wr @ block.params)[:, 0]
+        add_columns(own, sl, (wr @ block.params)[:, 0])
         push += (wr @ block.rotation)[:, 0]
     wr = (rg * w.gyro[:, None])[:, None, :]
-    own[:-1, jac.cols["gyro"]] += (wr @ jac.gyro.params)[:, 0]
+    add_columns(own[:-1], jac.cols["gyro"], (wr @ jac.gyro.params)[:, 0])
     return own, push, (wr @ jac.gyro.previous)[:, 0], wr[:, 0]
 
 
@@ -280,7 +280,7 @@ def kept_shares(state: State, data: Data, w: Weights, replicates: int = 2) -> Ar
     from the residuals is that share of the true one. Dividing by it is the restricted
     (REML-type) moment estimate of the noise levels (Eq. C6)."""
     normal = normal_equations(state, data, w)
-    S, _, W, _ = schur(normal)
+    S, _, W, _ = _eliminated(normal)
     Sinv = _invert(S, _free(w, len(S)))
     jac = _jacobians(state, data)
     data_w = dataclasses.replace(w, prior=None)
@@ -296,6 +296,14 @@ def kept_shares(state: State, data: Data, w: Weights, replicates: int = 2) -> Ar
             kept[k] += float(np.sum(weights[k] * np.sum(fitted[k] ** 2, axis=1)))
     share: Array = np.clip(kept / np.maximum(total, 1e-300), 1e-6, 1.0)
     return share
+
+
+def _eliminated(normal: Normal) -> tuple[Array, Array, Array, Array]:
+    """:func:`.solver.schur` undamped, the border ``H_tp`` let go after it (``W`` replaces it;
+    on an hour's log it is tens of megabytes)."""
+    out = schur(normal)
+    normal.border = np.empty((0, out[2].shape[1]))
+    return out
 
 
 def long_run(psi: Array, batch: int) -> Array:
@@ -350,7 +358,7 @@ def sandwich(
 
     ``batch``: samples per batch of the long-run covariance (:data:`BATCH` seconds)."""
     normal = normal_equations(state, data, w)
-    S, _, W, _ = schur(normal)
+    S, _, W, _ = _eliminated(normal)
     data_w = dataclasses.replace(w, prior=None)
     jac = _jacobians(state, data)
     X = _profile(normal, W)
