@@ -32,9 +32,10 @@ def test_pose_noise_words_numbers_and_sensors():
 
 
 def test_the_world_magnetic_model_keyword_is_parsed_once():
-    assert {wmm_unit(k.replace("wmm", "WMM")) for k in WMM_UNITS} == {"uT", "nT"}
+    assert {wmm_unit(k.replace("wmm", "WMM")) for k in WMM_UNITS} == {"uT", "nT", "G", "mG"}
     assert wmm_unit("50") is None and wmm_unit(50.0) is None
     assert parse_field_strength(" wmm:nT ") == "wmm:nT"
+    assert wmm_unit("wmm:gauss") == "G" and wmm_unit("WMM:mGauss") == "mG"  # flight logs' units
     assert parse_field_strength("48.5") == 48.5
     with pytest.raises(ValueError, match="neither a number nor wmm"):
         parse_field_strength("earth")

@@ -302,3 +302,13 @@ def test_cli_field_prints_the_model(tmp_path):
     assert doc == pytest.approx({k: getattr(ref, k) for k in doc}) and doc["model"] == "WMM2025"
     bad = CliRunner().invoke(cli, ["field", "--location", "95,0"])
     assert bad.exit_code == 2 and bad.stderr.strip().startswith("Error: location '95,0'")
+
+
+def test_intensity_in_every_unit_a_log_may_use():
+    """One field in µT, nT, gauss (PX4) and milligauss (ArduPilot): 1 G = 100 µT = 1e5 nT."""
+    ref = expected_field(SITE, "2022-05-01")
+    ut = ref.intensity_in("uT")
+    assert 20.0 < ut < 70.0  # Earth's field
+    assert ref.intensity_in("nT") == pytest.approx(1000.0 * ut, rel=1e-12)
+    assert ref.intensity_in("G") == pytest.approx(ut / 100.0, rel=1e-12)
+    assert ref.intensity_in("mG") == pytest.approx(10.0 * ut, rel=1e-12)
